@@ -1,0 +1,63 @@
+# Compile options shared by every first-party target (linked PRIVATE, never global flags).
+add_library(m2s_options INTERFACE)
+add_library(m2s::options ALIAS m2s_options)
+target_compile_features(m2s_options INTERFACE cxx_std_20)
+target_compile_options(m2s_options INTERFACE
+  $<$<CXX_COMPILER_ID:GNU,Clang>:-Wall -Wextra -Wpedantic -Wno-unused-parameter>
+  $<$<BOOL:${M2S_WERROR}>:-Werror>)
+if(M2S_SANITIZE)
+  string(REPLACE ";" "," _m2s_san "${M2S_SANITIZE}")
+  target_compile_options(m2s_options INTERFACE -fsanitize=${_m2s_san} -fno-omit-frame-pointer)
+  target_link_options(m2s_options INTERFACE -fsanitize=${_m2s_san})
+endif()
+
+# m2s_add_library(NAME ALIAS DIR [DEPS ...] [PRIVATE_DEPS ...])
+# One library per folder: sources are DIR/src/**/*.cc, public headers DIR/include.
+function(m2s_add_library name)
+  cmake_parse_arguments(ARG "" "ALIAS;DIR" "DEPS;PRIVATE_DEPS" ${ARGN})
+  file(GLOB_RECURSE _srcs CONFIGURE_DEPENDS ${ARG_DIR}/src/*.cc)
+  add_library(${name} STATIC ${_srcs})
+  add_library(${ARG_ALIAS} ALIAS ${name})
+  target_include_directories(${name} PUBLIC ${ARG_DIR}/include PRIVATE ${ARG_DIR}/src)
+  target_link_libraries(${name} PUBLIC ${ARG_DEPS} PRIVATE m2s::options ${ARG_PRIVATE_DEPS})
+  target_compile_features(${name} PUBLIC cxx_std_20)
+endfunction()
+
+# m2s_add_executable(NAME SOURCES ... [DEPS ...]): lands in build/bin.
+function(m2s_add_executable name)
+  cmake_parse_arguments(ARG "" "" "SOURCES;DEPS" ${ARGN})
+  add_executable(${name} ${ARG_SOURCES})
+  target_link_libraries(${name} PRIVATE m2s::options ${ARG_DEPS})
+endfunction()
+
+# m2s_add_test(NAME SOURCES ... [DEPS ...]): one gtest executable, discovered by ctest.
+function(m2s_add_test name)
+  cmake_parse_arguments(ARG "" "" "SOURCES;DEPS" ${ARGN})
+  add_executable(${name} ${ARG_SOURCES})
+  set_target_properties(${name} PROPERTIES RUNTIME_OUTPUT_DIRECTORY ${CMAKE_BINARY_DIR}/bin/tests)
+  target_link_libraries(${name} PRIVATE m2s::options ${ARG_DEPS} GTest::gtest GTest::gtest_main)
+  target_compile_definitions(${name} PRIVATE
+    M2S_SOURCE_DIR="${PROJECT_SOURCE_DIR}" M2S_BINARY_DIR="${CMAKE_BINARY_DIR}")
+  gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60 PROPERTIES TIMEOUT 600)
+endfunction()
+
+# m2s_add_benchmark(NAME SOURCES ... [DEPS ...]): built, never run by ctest.
+function(m2s_add_benchmark name)
+  if(NOT M2S_BUILD_BENCHMARKS)
+    return()
+  endif()
+  cmake_parse_arguments(ARG "" "" "SOURCES;DEPS" ${ARGN})
+  add_executable(${name} ${ARG_SOURCES})
+  target_link_libraries(${name} PRIVATE m2s::options ${ARG_DEPS} benchmark::benchmark)
+endfunction()
+
+# Adds every immediate sub-folder of the current source dir that has a CMakeLists.txt.
+function(m2s_add_subdirectories)
+  file(GLOB _children RELATIVE ${CMAKE_CURRENT_SOURCE_DIR} CONFIGURE_DEPENDS
+       ${CMAKE_CURRENT_SOURCE_DIR}/*/CMakeLists.txt)
+  list(SORT _children)
+  foreach(_child ${_children})
+    get_filename_component(_dir ${_child} DIRECTORY)
+    add_subdirectory(${_dir})
+  endforeach()
+endfunction()

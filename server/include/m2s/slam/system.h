@@ -1,0 +1,160 @@
+// The public API of the SLAM library (m2s::slam). The server executable and the on-device
+// client use only this header.
+//
+// A System turns a stream of vertex-feature frames into camera poses and a sparse map. Map
+// points are keyed by VertexId (a vertex is one 3-D point). Poses are world_from_camera with
+// OpenCV camera axes (x right, y down, z forward); the world frame and scale are those of the
+// monocular initialisation (first keyframe at the origin, median scene depth 1).
+//
+// Threading: Track()/Submit() are called from one producer thread; local mapping, loop
+// (drift) correction and global BA run in their own threads unless Options::deterministic,
+// where they run inline in Track() so results are bit-identical run to run. Every other method
+// is safe to call from any thread.
+//
+//   auto system = slam::System::Create(options);        // Expected<std::unique_ptr<System>>
+//   slam::TrackResult r = (*system)->Track(frame);      // synchronous
+//   slam::MapDelta delta = (*system)->TakeMapDelta();   // changes since the last call
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "m2s/common/camera.h"
+#include "m2s/common/geometry.h"
+#include "m2s/common/status.h"
+#include "m2s/common/types.h"
+
+namespace m2s::slam {
+
+enum class TrackingState {
+  kNotInitialized = 0,  // waiting for two frames with enough parallax
+  kOk = 1,              // tracked against the map
+  kLost = 2,            // tracking failed; relocalising on the next frames
+  kRelocalized = 3,     // this frame was relocalised against the map
+  kRejected = 4,        // the frame was invalid and not used (see TrackResult::reject_reason)
+};
+const char* ToString(TrackingState state);
+
+struct Frame {
+  int64_t seq = 0;         // strictly increasing within a session
+  double timestamp = 0.0;  // capture time, seconds
+  std::vector<VertexFeature> features;
+  // Ground truth, kept only for evaluation (never read by tracking).
+  std::optional<Pose3> ground_truth_world_from_camera;
+};
+
+struct TrackResult {
+  int64_t seq = 0;
+  double timestamp = 0.0;
+  TrackingState state = TrackingState::kNotInitialized;
+  Pose3 world_from_camera;  // valid when state is kOk or kRelocalized
+  int num_features = 0;
+  int num_inliers = 0;
+  bool keyframe_created = false;
+  double tracking_ms = 0.0;
+  std::string reject_reason;  // set when state == kRejected
+};
+
+struct KeyframeState {
+  KeyframeId id = 0;
+  double timestamp = 0.0;
+  Pose3 world_from_camera;
+};
+
+// Map changes between two revisions. Apply in order: a receiver at `base_revision` moves to
+// `revision`; a full delta (base_revision 0) replaces everything.
+struct MapDelta {
+  uint64_t base_revision = 0;
+  uint64_t revision = 0;
+  bool full = false;
+  std::vector<KeyframeState> keyframes;  // upserted
+  std::vector<KeyframeId> removed_keyframes;
+  std::vector<VertexId> point_ids;  // upserted, parallel to point_positions
+  std::vector<Eigen::Vector3f> point_positions;
+  std::vector<VertexId> removed_points;
+  bool empty() const {
+    return keyframes.empty() && removed_keyframes.empty() && point_ids.empty() &&
+           removed_points.empty();
+  }
+};
+
+struct TrajectoryEntry {
+  int64_t seq = 0;
+  double timestamp = 0.0;
+  TrackingState state = TrackingState::kNotInitialized;
+  Pose3 world_from_camera;  // latest estimate (refined by BA and drift correction for keyframes)
+  bool is_keyframe = false;
+  std::optional<Pose3> ground_truth_world_from_camera;
+};
+
+struct SystemStats {
+  int64_t frames_submitted = 0;
+  int64_t frames_tracked = 0;
+  int64_t frames_dropped_queue = 0;  // dropped by the latest-wins input queue
+  int64_t frames_rejected = 0;       // invalid frames (reasons counted below)
+  int64_t frames_lost = 0;
+  int64_t relocalisations = 0;
+  int64_t loop_corrections = 0;
+  int keyframes = 0;
+  int map_points = 0;
+  uint64_t map_revision = 0;
+};
+
+struct Options {
+  Camera camera;
+  // Frames with more features than this are rejected (bounded work and memory).
+  int max_features_per_frame = 200000;
+  // Capacity of the latest-wins input queue used by Submit().
+  int input_queue_capacity = 2;
+  // Run mapping and drift correction inline (bit-identical results) instead of in threads.
+  bool deterministic = false;
+  // Localisation only: track against a loaded map, never change it.
+  bool localization_only = false;
+  // Enable drift correction when old map points are re-observed.
+  bool drift_correction = true;
+  // Threads Ceres may use in local / global bundle adjustment.
+  int num_ba_threads = 1;
+  // Bound on the map (oldest redundant keyframes are culled beyond it).
+  int max_keyframes = 2000;
+
+  bool Check(std::string* why) const;
+};
+
+class System {
+ public:
+  static Expected<std::unique_ptr<System>> Create(const Options& options);
+  virtual ~System() = default;  // stops and joins every thread
+
+  // Tracks one frame now, in the calling thread.
+  virtual TrackResult Track(const Frame& frame) = 0;
+
+  // Asynchronous mode (the paper's): enqueue into the latest-wins queue; a tracking thread
+  // processes frames and WaitForResult() hands out results in order. When tracking is behind,
+  // the oldest queued frame is dropped and counted (SystemStats::frames_dropped_queue).
+  virtual void Submit(Frame frame) = 0;
+  // Waits up to timeout_s for the next result; false on timeout or after Shutdown().
+  virtual bool WaitForResult(TrackResult* result, double timeout_s) = 0;
+
+  // Map changes since the previous call (empty when nothing changed).
+  virtual MapDelta TakeMapDelta() = 0;
+  // The whole map as a full delta, for resync; does not disturb TakeMapDelta().
+  virtual MapDelta FullMap() const = 0;
+
+  virtual std::vector<TrajectoryEntry> Trajectory() const = 0;
+  virtual SystemStats Stats() const = 0;
+
+  // Forgets the map and the trajectory; the next frames initialise again.
+  virtual void Reset() = 0;
+  // Saves / loads the map (keyframes, points, observations). Loading switches to
+  // localisation-only tracking.
+  virtual Status SaveMap(const std::string& path) const = 0;
+  virtual Status LoadMap(const std::string& path) = 0;
+
+  // Stops every thread (queued frames are discarded); idempotent, also done by the destructor.
+  virtual void Shutdown() = 0;
+};
+
+}  // namespace m2s::slam
