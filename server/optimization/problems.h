@@ -1,0 +1,124 @@
+// Optimisation problems of the SLAM back-end, on plain data (no map types), so they are
+// testable alone and callable from any thread. Implemented on Ceres (server/optimization/*.cc).
+//
+// Conventions: poses are camera_from_world here (the form the reprojection residual wants);
+// callers convert from world_from_camera. Pixel observations follow camera.h.
+//
+//   PoseOnlyResult r = OptimizePose(camera, options, points_world, observations_uv, &pose);
+//   BundleAdjustmentResult b = BundleAdjust(camera, ba_options, &problem);
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "m2s/common/camera.h"
+#include "m2s/common/geometry.h"
+#include "m2s/common/types.h"
+
+namespace m2s::slam {
+
+// ---------- Pose-only optimisation (tracking) ----------
+struct PoseOnlyOptions {
+  double huber_delta_px = 2.0;       // robust loss scale (pixels)
+  double chi2_threshold = 5.991;     // 2-dof chi-square at 95%, on residual^2 / sigma^2
+  double pixel_sigma = 1.0;          // assumed feature noise (pixels)
+  int rounds = 4;                    // optimise / classify outliers rounds (ORB-SLAM2 style)
+  int max_iterations_per_round = 10;
+
+  bool Check(std::string* why) const;
+};
+
+struct PoseOnlyResult {
+  bool converged = false;
+  int num_inliers = 0;
+  std::vector<bool> inlier;          // parallel to the input observations
+  double final_rmse_px = 0.0;        // over inliers
+};
+
+// Refines camera_from_world from 3-D points (world) and their pixel observations.
+PoseOnlyResult OptimizePose(const Camera& camera, const PoseOnlyOptions& options,
+                            const std::vector<Eigen::Vector3d>& points_world,
+                            const std::vector<Eigen::Vector2d>& observations_uv,
+                            Pose3* camera_from_world);
+
+// ---------- Bundle adjustment (initialisation, local and global BA) ----------
+struct BaKeyframe {
+  KeyframeId id = 0;
+  Pose3 camera_from_world;  // in/out
+  bool fixed = false;
+};
+struct BaPoint {
+  VertexId id = 0;
+  Eigen::Vector3d position_world = Eigen::Vector3d::Zero();  // in/out
+  bool fixed = false;
+};
+struct BaObservation {
+  int keyframe_index = 0;  // index into BaProblem::keyframes
+  int point_index = 0;     // index into BaProblem::points
+  Eigen::Vector2d uv = Eigen::Vector2d::Zero();
+};
+struct BaProblem {
+  std::vector<BaKeyframe> keyframes;
+  std::vector<BaPoint> points;
+  std::vector<BaObservation> observations;
+};
+
+struct BundleAdjustmentOptions {
+  double huber_delta_px = 2.0;
+  double chi2_threshold = 5.991;
+  double pixel_sigma = 1.0;
+  int max_iterations = 20;
+  int num_threads = 1;
+  // After the first solve, drop chi-square outliers and solve again (ORB-SLAM2's two passes).
+  bool second_pass_without_outliers = true;
+  // With no fixed keyframe, the first one is held fixed to remove the gauge freedom.
+  bool Check(std::string* why) const;
+};
+
+struct BundleAdjustmentResult {
+  bool success = false;
+  double initial_rmse_px = 0.0;
+  double final_rmse_px = 0.0;
+  int iterations = 0;
+  std::vector<bool> outlier;  // parallel to BaProblem::observations, after the last pass
+  double solve_ms = 0.0;
+};
+
+// Schur-based (SPARSE_SCHUR / DENSE_SCHUR) BA with a robust loss; poses on an SE3 manifold.
+BundleAdjustmentResult BundleAdjust(const Camera& camera, const BundleAdjustmentOptions& options,
+                                    BaProblem* problem);
+
+// ---------- Sim3 pose graph (drift correction) ----------
+struct PoseGraphNode {
+  KeyframeId id = 0;
+  Sim3 world_from_camera;  // in/out (scale 1 on input for SE3 keyframe poses)
+  bool fixed = false;
+};
+struct PoseGraphEdge {
+  int from_index = 0;  // indices into nodes
+  int to_index = 0;
+  Sim3 from_from_to;   // measured relative transform: from_node^-1 * to_node
+  double weight = 1.0;
+};
+struct PoseGraphOptions {
+  int max_iterations = 50;
+  bool Check(std::string* why) const;
+};
+struct PoseGraphResult {
+  bool success = false;
+  double initial_cost = 0.0;
+  double final_cost = 0.0;
+};
+
+// Optimises Sim3 keyframe poses so relative transforms match the edges (loop edges included).
+PoseGraphResult OptimizePoseGraph(const PoseGraphOptions& options, std::vector<PoseGraphNode>* nodes,
+                                  const std::vector<PoseGraphEdge>& edges);
+
+// Closed-form similarity aligning matched point sets: target ~= result * source (Umeyama).
+// With fix_scale the result is rigid (scale 1). Needs >= 3 non-collinear pairs.
+bool AlignPoints(const std::vector<Eigen::Vector3d>& source, const std::vector<Eigen::Vector3d>& target,
+                 bool fix_scale, Sim3* target_from_source);
+
+}  // namespace m2s::slam
