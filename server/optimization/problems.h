@@ -116,9 +116,6 @@ struct PoseGraphResult {
 PoseGraphResult OptimizePoseGraph(const PoseGraphOptions& options, std::vector<PoseGraphNode>* nodes,
                                   const std::vector<PoseGraphEdge>& edges);
 
-// Closed-form similarity aligning matched point sets: target ~= result * source (Umeyama).
-// With fix_scale the result is rigid (scale 1). Needs >= 3 non-collinear pairs.
-bool AlignPoints(const std::vector<Eigen::Vector3d>& source, const std::vector<Eigen::Vector3d>& target,
-                 bool fix_scale, Sim3* target_from_source);
+// Closed-form point-set alignment (Umeyama) is m2s::AlignPoints in common/alignment.h.
 
 }  // namespace m2s::slam
