@@ -64,8 +64,6 @@ Camera Camera::FromGlProjection(const Eigen::Matrix4d& p, int width, int height)
   return c;
 }
 
-Eigen::Matrix4d Camera::GlFromCv() {
-  return Eigen::Vector4d(1.0, -1.0, -1.0, 1.0).asDiagonal();
-}
+Eigen::Matrix4d Camera::GlFromCv() { return Eigen::Vector4d(1.0, -1.0, -1.0, 1.0).asDiagonal(); }
 
 }  // namespace m2s

@@ -41,8 +41,9 @@ Pose3 Pose3::Exp(const Eigen::Matrix<double, 6, 1>& rho_phi) {
   const Eigen::Vector3d rho = rho_phi.head<3>();
   const Eigen::Vector3d phi = rho_phi.tail<3>();
   const double theta = phi.norm();
-  Eigen::Quaterniond q = theta < 1e-12 ? Eigen::Quaterniond(1, 0.5 * phi.x(), 0.5 * phi.y(), 0.5 * phi.z())
-                                       : Eigen::Quaterniond(Eigen::AngleAxisd(theta, phi / theta));
+  Eigen::Quaterniond q = theta < 1e-12
+                             ? Eigen::Quaterniond(1, 0.5 * phi.x(), 0.5 * phi.y(), 0.5 * phi.z())
+                             : Eigen::Quaterniond(Eigen::AngleAxisd(theta, phi / theta));
   return Pose3(q.normalized(), LeftJacobian(phi) * rho);
 }
 

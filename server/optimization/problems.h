@@ -21,10 +21,10 @@ namespace m2s::slam {
 
 // ---------- Pose-only optimisation (tracking) ----------
 struct PoseOnlyOptions {
-  double huber_delta_px = 2.0;       // robust loss scale (pixels)
-  double chi2_threshold = 5.991;     // 2-dof chi-square at 95%, on residual^2 / sigma^2
-  double pixel_sigma = 1.0;          // assumed feature noise (pixels)
-  int rounds = 4;                    // optimise / classify outliers rounds (ORB-SLAM2 style)
+  double huber_delta_px = 2.0;    // robust loss scale (pixels)
+  double chi2_threshold = 5.991;  // 2-dof chi-square at 95%, on residual^2 / sigma^2
+  double pixel_sigma = 1.0;       // assumed feature noise (pixels)
+  int rounds = 4;                 // optimise / classify outliers rounds (ORB-SLAM2 style)
   int max_iterations_per_round = 10;
 
   bool Check(std::string* why) const;
@@ -33,8 +33,8 @@ struct PoseOnlyOptions {
 struct PoseOnlyResult {
   bool converged = false;
   int num_inliers = 0;
-  std::vector<bool> inlier;          // parallel to the input observations
-  double final_rmse_px = 0.0;        // over inliers
+  std::vector<bool> inlier;    // parallel to the input observations
+  double final_rmse_px = 0.0;  // over inliers
 };
 
 // Refines camera_from_world from 3-D points (world) and their pixel observations.
@@ -99,7 +99,7 @@ struct PoseGraphNode {
 struct PoseGraphEdge {
   int from_index = 0;  // indices into nodes
   int to_index = 0;
-  Sim3 from_from_to;   // measured relative transform: from_node^-1 * to_node
+  Sim3 from_from_to;  // measured relative transform: from_node^-1 * to_node
   double weight = 1.0;
 };
 struct PoseGraphOptions {
@@ -113,7 +113,8 @@ struct PoseGraphResult {
 };
 
 // Optimises Sim3 keyframe poses so relative transforms match the edges (loop edges included).
-PoseGraphResult OptimizePoseGraph(const PoseGraphOptions& options, std::vector<PoseGraphNode>* nodes,
+PoseGraphResult OptimizePoseGraph(const PoseGraphOptions& options,
+                                  std::vector<PoseGraphNode>* nodes,
                                   const std::vector<PoseGraphEdge>& edges);
 
 // Closed-form point-set alignment (Umeyama) is m2s::AlignPoints in common/alignment.h.

@@ -27,7 +27,8 @@ class Pose3 {
   static Pose3 Identity() { return Pose3(); }
   // From a 4x4 homogeneous matrix (the top-left block must be a rotation).
   static Pose3 FromMatrix(const Eigen::Matrix4d& m) {
-    return Pose3(Eigen::Matrix3d(m.topLeftCorner<3, 3>()), Eigen::Vector3d(m.topRightCorner<3, 1>()));
+    return Pose3(Eigen::Matrix3d(m.topLeftCorner<3, 3>()),
+                 Eigen::Vector3d(m.topRightCorner<3, 1>()));
   }
   // Exponential map of a twist (rho: translation part, phi: rotation vector), SE3 proper.
   static Pose3 Exp(const Eigen::Matrix<double, 6, 1>& rho_phi);
@@ -48,9 +49,7 @@ class Pose3 {
 
   // Logarithm: (rho, phi) with Exp(Log()) == *this.
   Eigen::Matrix<double, 6, 1> Log() const;
-  bool AllFinite() const {
-    return rotation_.coeffs().allFinite() && translation_.allFinite();
-  }
+  bool AllFinite() const { return rotation_.coeffs().allFinite() && translation_.allFinite(); }
 
  private:
   Eigen::Quaterniond rotation_;
@@ -86,7 +85,8 @@ class Sim3 {
   // Applies the similarity to a camera pose: the pose of the same camera in the target frame,
   // with the translation scaled and the rotation rotated (scale does not enter the rotation).
   Pose3 TransformPose(const Pose3& world_from_camera) const {
-    return Pose3(rotation() * world_from_camera.rotation(), (*this) * world_from_camera.translation());
+    return Pose3(rotation() * world_from_camera.rotation(),
+                 (*this) * world_from_camera.translation());
   }
 
  private:

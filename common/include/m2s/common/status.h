@@ -33,7 +33,7 @@ class Status {
 template <typename T>
 class Expected {
  public:
-  Expected(T value) : data_(std::move(value)) {}  // NOLINT: implicit by design
+  Expected(T value) : data_(std::move(value)) {}       // NOLINT: implicit by design
   Expected(Status error) : data_(std::move(error)) {}  // NOLINT: must not be OK
   static Expected Error(std::string message) { return Expected(Status::Error(std::move(message))); }
 
