@@ -1,0 +1,414 @@
+#include "m2s/common/wire_format.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <exception>
+#include <sstream>
+
+namespace m2s::wire {
+namespace {
+
+constexpr int kMaxUvShift = 8;
+constexpr int kHashBytes = 8;
+constexpr int kPoseBytes = 7 * 8;
+constexpr int kCameraBytes = 2 * 4 + 6 * 8;
+constexpr int kKeyframeBytes = 4 + 8 + kPoseBytes;
+
+// Big-endian reader over untrusted bytes; every read is bounds-checked.
+class Reader {
+ public:
+  Reader(const void* data, size_t size) : data_(static_cast<const uint8_t*>(data)), size_(size) {}
+  bool Skip(size_t n) {
+    if (n > size_ - pos_) return false;
+    pos_ += n;
+    return true;
+  }
+  bool ReadI32(int32_t* value) {
+    if (4 > size_ - pos_) return false;
+    uint32_t v = 0;
+    for (int i = 0; i < 4; ++i) v = (v << 8) | data_[pos_ + i];
+    pos_ += 4;
+    *value = static_cast<int32_t>(v);
+    return true;
+  }
+  bool ReadI64(int64_t* value) {
+    if (8 > size_ - pos_) return false;
+    uint64_t v = 0;
+    for (int i = 0; i < 8; ++i) v = (v << 8) | data_[pos_ + i];
+    pos_ += 8;
+    *value = static_cast<int64_t>(v);
+    return true;
+  }
+  // Reads a count and skips count * element_bytes; false when the bytes are not there.
+  bool SkipArray(size_t element_bytes, int32_t* count) {
+    if (!ReadI32(count) || *count < 0) return false;
+    return static_cast<uint64_t>(*count) * element_bytes <= size_ - pos_ &&
+           Skip(static_cast<size_t>(*count) * element_bytes);
+  }
+  size_t pos() const { return pos_; }
+  size_t remaining() const { return size_ - pos_; }
+
+ private:
+  const uint8_t* data_;
+  size_t size_;
+  size_t pos_ = 0;
+};
+
+template <typename T>
+DecodeResult<T> Fail(DropReason reason, const std::string& message) {
+  return DecodeResult<T>::Error(reason, message);
+}
+
+// Checks the type hash, then decodes with the generated code (after the caller has checked
+// the counts against the size, so nothing large is allocated).
+template <typename Message>
+DecodeResult<Message> DecodeChecked(const void* data, size_t size) {
+  Reader reader(data, size);
+  int64_t hash = 0;
+  if (!reader.ReadI64(&hash)) {
+    return Fail<Message>(DropReason::kBadBytes, std::string(Message::getTypeName()) +
+                                                    ": message shorter than its fingerprint");
+  }
+  if (hash != Message::getHash()) {
+    return Fail<Message>(DropReason::kWrongFingerprint,
+                         std::string("fingerprint is not that of ") + Message::getTypeName());
+  }
+  if (size > static_cast<size_t>(INT32_MAX)) {
+    return Fail<Message>(DropReason::kBadBytes, "message larger than 2 GiB");
+  }
+  Message message;
+  int consumed = -1;
+  try {
+    consumed = message.decode(data, 0, static_cast<int>(size));
+  } catch (const std::exception&) {
+    consumed = -1;
+  }
+  if (consumed < 0) {
+    return Fail<Message>(DropReason::kBadBytes,
+                         std::string(Message::getTypeName()) + ": malformed bytes");
+  }
+  if (static_cast<size_t>(consumed) != size) {
+    return Fail<Message>(DropReason::kBadBytes, std::string(Message::getTypeName()) + ": " +
+                                                    std::to_string(size - consumed) +
+                                                    " trailing bytes");
+  }
+  if (message.version != Message::VERSION) {
+    return Fail<Message>(
+        DropReason::kBadVersion,
+        std::string(Message::getTypeName()) + ": version " + std::to_string(message.version));
+  }
+  return message;
+}
+
+bool AllFinite(const double* values, int n) {
+  for (int i = 0; i < n; ++i) {
+    if (!std::isfinite(values[i])) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+const char* ToString(DropReason reason) {
+  switch (reason) {
+    case DropReason::kBadBytes:
+      return "bad_bytes";
+    case DropReason::kWrongFingerprint:
+      return "wrong_fingerprint";
+    case DropReason::kBadVersion:
+      return "bad_version";
+    case DropReason::kBadCamera:
+      return "bad_camera";
+    case DropReason::kNonFinite:
+      return "non_finite";
+    case DropReason::kBadUvShift:
+      return "bad_uv_shift";
+    case DropReason::kNegativeId:
+      return "negative_id";
+    case DropReason::kOutOfImage:
+      return "out_of_image";
+    case DropReason::kDuplicateId:
+      return "duplicate_id";
+    case DropReason::kTooManyFeatures:
+      return "too_many_features";
+    case DropReason::kSeqNotIncreasing:
+      return "seq_not_increasing";
+    case DropReason::kUnknownSession:
+      return "unknown_session";
+    case DropReason::kEndedSession:
+      return "ended_session";
+    case DropReason::kMaxSessions:
+      return "max_sessions";
+    case DropReason::kCameraChanged:
+      return "camera_changed";
+    case DropReason::kBadSessionMessage:
+      return "bad_session_message";
+    case DropReason::kCount:
+      break;
+  }
+  return "unknown";
+}
+
+int UvShiftFor(int width, int height) {
+  const int64_t size = std::max(width, height);
+  if (width <= 0 || height <= 0 || size > 65536) return -1;
+  int shift = 0;
+  while (shift < kMaxUvShift && (size << (shift + 1)) <= 65536) ++shift;
+  return shift;
+}
+
+uint16_t QuantizeCoordinate(float value, int uv_shift) {
+  const double scaled = std::ldexp(static_cast<double>(value), uv_shift);
+  if (!(scaled > 0.0)) return 0;  // also NaN
+  return static_cast<uint16_t>(std::min(std::llround(scaled), static_cast<long long>(65535)));
+}
+
+float DequantizeCoordinate(uint16_t code, int uv_shift) {
+  return static_cast<float>(std::ldexp(static_cast<double>(code), -uv_shift));
+}
+
+pose_t ToMessage(const Pose3& pose) {
+  pose_t m;
+  for (int i = 0; i < 3; ++i) m.t[i] = pose.translation()[i];
+  const Eigen::Quaterniond& q = pose.rotation();
+  m.q[0] = q.w();
+  m.q[1] = q.x();
+  m.q[2] = q.y();
+  m.q[3] = q.z();
+  return m;
+}
+
+camera_t ToMessage(const Camera& camera) {
+  camera_t m;
+  m.width = camera.width;
+  m.height = camera.height;
+  m.fx = camera.fx;
+  m.fy = camera.fy;
+  m.cx = camera.cx;
+  m.cy = camera.cy;
+  m.near_m = camera.near;
+  m.far_m = camera.far;
+  return m;
+}
+
+DecodeResult<Pose3> FromMessage(const pose_t& m) {
+  if (!AllFinite(m.t, 3) || !AllFinite(m.q, 4)) {
+    return Fail<Pose3>(DropReason::kNonFinite, "pose has a non-finite value");
+  }
+  const Eigen::Quaterniond q(m.q[0], m.q[1], m.q[2], m.q[3]);
+  if (!(q.norm() > 1e-6)) return Fail<Pose3>(DropReason::kBadBytes, "pose quaternion is zero");
+  return Pose3(q, Eigen::Vector3d(m.t[0], m.t[1], m.t[2]));
+}
+
+DecodeResult<Camera> FromMessage(const camera_t& m) {
+  const double values[] = {m.fx, m.fy, m.cx, m.cy, m.near_m, m.far_m};
+  if (!AllFinite(values, 6)) {
+    return Fail<Camera>(DropReason::kNonFinite, "camera has a non-finite value");
+  }
+  Camera camera;
+  camera.width = m.width;
+  camera.height = m.height;
+  camera.fx = m.fx;
+  camera.fy = m.fy;
+  camera.cx = m.cx;
+  camera.cy = m.cy;
+  camera.near = m.near_m;
+  camera.far = m.far_m;
+  std::string why;
+  if (!camera.Check(&why)) return Fail<Camera>(DropReason::kBadCamera, "camera: " + why);
+  if (UvShiftFor(camera.width, camera.height) < 0) {
+    return Fail<Camera>(DropReason::kBadCamera, "camera: image larger than 65536 px");
+  }
+  return camera;
+}
+
+feature_frame_t ToMessage(const FeatureFrame& frame) {
+  feature_frame_t m;
+  m.version = feature_frame_t::VERSION;
+  m.session_id = frame.session_id;
+  m.seq = frame.seq;
+  m.capture_time_us = frame.capture_time_us;
+  m.send_wall_us = frame.send_wall_us;
+  m.camera = ToMessage(frame.camera);
+  const int shift = std::max(0, UvShiftFor(frame.camera.width, frame.camera.height));
+  m.uv_shift = static_cast<int8_t>(shift);
+  const size_t n = frame.features.size();
+  m.num_features = static_cast<int32_t>(n);
+  m.ids.resize(n);
+  m.u_q.resize(n);
+  m.v_q.resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    const VertexFeature& f = frame.features[i];
+    m.ids[i] = static_cast<int32_t>(f.id);
+    m.u_q[i] = static_cast<int16_t>(QuantizeCoordinate(f.uv.x(), shift));
+    m.v_q[i] = static_cast<int16_t>(QuantizeCoordinate(f.uv.y(), shift));
+  }
+  m.has_ground_truth = frame.ground_truth_world_from_camera.has_value();
+  m.ground_truth_world_from_camera =
+      m.has_ground_truth ? ToMessage(*frame.ground_truth_world_from_camera) : ToMessage(Pose3());
+  return m;
+}
+
+DecodeResult<FeatureFrame> FromMessage(const feature_frame_t& m, const FrameLimits& limits) {
+  using R = DecodeResult<FeatureFrame>;
+  if (m.version != feature_frame_t::VERSION) {
+    return R::Error(DropReason::kBadVersion, "frame version " + std::to_string(m.version));
+  }
+  if (m.num_features < 0 || m.ids.size() != static_cast<size_t>(m.num_features) ||
+      m.u_q.size() != m.ids.size() || m.v_q.size() != m.ids.size()) {
+    return R::Error(DropReason::kBadBytes, "frame feature arrays inconsistent with num_features");
+  }
+  auto camera = FromMessage(m.camera);
+  if (!camera) return R::Error(camera.reason(), camera.error());
+  const int shift = UvShiftFor(camera->width, camera->height);
+  if (m.uv_shift != shift) {
+    return R::Error(DropReason::kBadUvShift, "uv_shift " + std::to_string(m.uv_shift) + " for a " +
+                                                 std::to_string(camera->width) + "x" +
+                                                 std::to_string(camera->height) +
+                                                 " image (expected " + std::to_string(shift) + ")");
+  }
+  if (m.num_features > limits.max_features) {
+    return R::Error(
+        DropReason::kTooManyFeatures,
+        std::to_string(m.num_features) + " features > max " + std::to_string(limits.max_features));
+  }
+  FeatureFrame frame;
+  if (m.has_ground_truth) {
+    auto gt = FromMessage(m.ground_truth_world_from_camera);
+    if (!gt) return R::Error(gt.reason(), "ground truth " + gt.error());
+    frame.ground_truth_world_from_camera = *gt;
+  }
+  const uint32_t u_limit = static_cast<uint32_t>(camera->width) << shift;
+  const uint32_t v_limit = static_cast<uint32_t>(camera->height) << shift;
+  const size_t n = m.ids.size();
+  frame.features.resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    if (m.ids[i] < 0) {
+      return R::Error(DropReason::kNegativeId, "negative vertex id " + std::to_string(m.ids[i]));
+    }
+    const uint16_t u = static_cast<uint16_t>(m.u_q[i]);
+    const uint16_t v = static_cast<uint16_t>(m.v_q[i]);
+    if (u >= u_limit || v >= v_limit) {
+      return R::Error(DropReason::kOutOfImage,
+                      "feature " + std::to_string(m.ids[i]) + " outside the image");
+    }
+    frame.features[i].id = static_cast<VertexId>(m.ids[i]);
+    frame.features[i].uv = {DequantizeCoordinate(u, shift), DequantizeCoordinate(v, shift)};
+  }
+  std::vector<int32_t> sorted(m.ids);
+  std::sort(sorted.begin(), sorted.end());
+  const auto dup = std::adjacent_find(sorted.begin(), sorted.end());
+  if (dup != sorted.end()) {
+    return R::Error(DropReason::kDuplicateId, "vertex id " + std::to_string(*dup) + " twice");
+  }
+  frame.session_id = m.session_id;
+  frame.seq = m.seq;
+  frame.capture_time_us = m.capture_time_us;
+  frame.send_wall_us = m.send_wall_us;
+  frame.camera = *camera;
+  return frame;
+}
+
+std::vector<uint8_t> EncodeFeatureFrame(const FeatureFrame& frame) {
+  return Encode(ToMessage(frame));
+}
+
+size_t FeatureFrameEncodedSize(size_t num_features) {
+  // hash, version, 4 int64, camera, uv_shift, count, 8 bytes per feature, flag, pose.
+  return kHashBytes + 2 + 4 * 8 + kCameraBytes + 1 + 4 + 8 * num_features + 1 + kPoseBytes;
+}
+
+DecodeResult<FeatureFrame> DecodeFeatureFrame(const void* data, size_t size,
+                                              const FrameLimits& limits) {
+  using R = DecodeResult<FeatureFrame>;
+  Reader reader(data, size);
+  int32_t count = 0;
+  int64_t hash = 0;
+  if (!reader.ReadI64(&hash)) return R::Error(DropReason::kBadBytes, "frame: too short");
+  if (hash != feature_frame_t::getHash()) {
+    return R::Error(DropReason::kWrongFingerprint, "fingerprint is not that of feature_frame_t");
+  }
+  if (!reader.Skip(2 + 4 * 8 + kCameraBytes + 1) || !reader.ReadI32(&count)) {
+    return R::Error(DropReason::kBadBytes, "frame: too short");
+  }
+  if (count < 0 || FeatureFrameEncodedSize(static_cast<size_t>(count)) != size) {
+    return R::Error(DropReason::kBadBytes, "frame: num_features " + std::to_string(count) +
+                                               " inconsistent with " + std::to_string(size) +
+                                               " bytes");
+  }
+  if (count > limits.max_features) {
+    return R::Error(DropReason::kTooManyFeatures, std::to_string(count) + " features > max " +
+                                                      std::to_string(limits.max_features));
+  }
+  auto message = DecodeChecked<feature_frame_t>(data, size);
+  if (!message) return R::Error(message.reason(), message.error());
+  return FromMessage(*message, limits);
+}
+
+DecodeResult<session_control_t> DecodeSessionControl(const void* data, size_t size) {
+  auto m = DecodeChecked<session_control_t>(data, size);
+  if (!m) return m;
+  if (m->type < session_control_t::HELLO || m->type > session_control_t::REJECTED) {
+    return Fail<session_control_t>(DropReason::kBadSessionMessage,
+                                   "session message type " + std::to_string(m->type));
+  }
+  if (m->type == session_control_t::HELLO) {
+    auto camera = FromMessage(m->camera);
+    if (!camera) return Fail<session_control_t>(camera.reason(), "HELLO " + camera.error());
+  }
+  return m;
+}
+
+DecodeResult<pose_estimate_t> DecodePoseEstimate(const void* data, size_t size) {
+  auto m = DecodeChecked<pose_estimate_t>(data, size);
+  if (!m) return m;
+  if (!AllFinite(m->world_from_camera.t, 3) || !AllFinite(m->world_from_camera.q, 4)) {
+    return Fail<pose_estimate_t>(DropReason::kNonFinite, "pose estimate is not finite");
+  }
+  return m;
+}
+
+DecodeResult<map_delta_t> DecodeMapDelta(const void* data, size_t size) {
+  Reader reader(data, size);
+  int32_t n = 0;
+  if (!reader.Skip(kHashBytes + 2 + 4 * 8 + 1) || !reader.SkipArray(kKeyframeBytes, &n) ||
+      !reader.SkipArray(4, &n) || !reader.SkipArray(4 + 12, &n) || !reader.SkipArray(4, &n)) {
+    return Fail<map_delta_t>(DropReason::kBadBytes, "map delta: counts inconsistent with size");
+  }
+  auto m = DecodeChecked<map_delta_t>(data, size);
+  if (!m) return m;
+  for (const keyframe_t& kf : m->keyframes) {
+    if (!AllFinite(kf.world_from_camera.t, 3) || !AllFinite(kf.world_from_camera.q, 4)) {
+      return Fail<map_delta_t>(DropReason::kNonFinite, "map delta: keyframe pose not finite");
+    }
+  }
+  for (const auto& p : m->point_xyz) {
+    if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])) {
+      return Fail<map_delta_t>(DropReason::kNonFinite, "map delta: point not finite");
+    }
+  }
+  return m;
+}
+
+DecodeResult<server_stats_t> DecodeServerStats(const void* data, size_t size) {
+  Reader reader(data, size);
+  int32_t n = 0;
+  bool ok = reader.Skip(kHashBytes + 2 + 8 + 8 + 4 + 3 * 8) && reader.ReadI32(&n) && n >= 0 &&
+            static_cast<uint64_t>(n) * 13 <= reader.remaining();
+  for (int32_t i = 0; ok && i < n; ++i) {
+    int32_t len = 0;
+    ok = reader.ReadI32(&len) && len >= 1 && reader.Skip(static_cast<size_t>(len));
+  }
+  if (!ok) return Fail<server_stats_t>(DropReason::kBadBytes, "stats: counts inconsistent");
+  return DecodeChecked<server_stats_t>(data, size);
+}
+
+int64_t WallClockMicros() {
+  return std::chrono::duration_cast<std::chrono::microseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+}  // namespace m2s::wire
