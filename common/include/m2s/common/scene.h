@@ -35,12 +35,35 @@ struct SceneLoadOptions {
   bool Check(std::string* why) const;
 };
 
-// Loads any format assimp reads (OBJ, PLY, glTF, FBX, 3DS, IFC...). The node hierarchy is
-// flattened with node transforms; all meshes of the scene are used. Returns a clear error for
-// a missing, unreadable, unsupported or vertex-less file.
+// Loads any format assimp reads (OBJ, PLY, glTF, FBX, 3DS, IFC...). Only aiProcess_Triangulate
+// is applied (no post-process step that reorders or joins vertices).
+//
+// Id order, stable across runs, machines and formats that keep face order (OBJ and PLY of the
+// same mesh give the same ids):
+//  1. Nodes are visited depth-first from the root, children in file order; each node's
+//     transform is the product of its ancestors' transforms and its own.
+//  2. In each node, its meshes in order; in each mesh, its faces in order and each face's
+//     corners in order, then the mesh vertices no face uses, in vertex order.
+//  3. Each position is transformed (node transform in float as assimp stores it, then the
+//     SceneLoadOptions transform in double, rounded to float). A transformed position that
+//     equals (exactly, -0 == +0) one seen before gets that earlier id; otherwise the next id.
+// Triangles are the triangulated faces in the same order, re-indexed to ids; degenerate ones
+// (two corners with the same id) are dropped. Point and line primitives give vertices only.
+// Errors (one line, naming the file): missing, unreadable or empty file, unsupported format,
+// no vertices, non-finite positions, invalid options.
 Expected<Scene> LoadScene(const std::string& path, const SceneLoadOptions& options = {});
 
-// The embedded default scene: a procedurally built furnished room (see default_scene.cc).
+// The embedded default scene: a procedurally built furnished room, about 6 m x 5 m x 2.7 m,
+// with tens of thousands of vertices at varied density (dense wall panels, sparse floor).
+// World frame z up, floor at z = 0, room centred on the origin in x and y. Deterministic.
 Scene MakeDefaultScene();
+
+// The floor plan of MakeDefaultScene(), for trajectory generators: the room box and the (x, y)
+// footprints of its furniture.
+struct RoomLayout {
+  Eigen::AlignedBox3d room;
+  std::vector<Eigen::AlignedBox2d> obstacles;
+};
+RoomLayout DefaultRoomLayout();
 
 }  // namespace m2s
