@@ -17,6 +17,7 @@
 #pragma once
 
 #include <cstdint>
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
@@ -101,6 +102,8 @@ struct SystemStats {
   int keyframes = 0;
   int map_points = 0;
   uint64_t map_revision = 0;
+  // Rejected frames by reason ("empty", "duplicate_id", "non_finite_uv", ...).
+  std::map<std::string, int64_t> rejected_by_reason;
 };
 
 struct Options {
@@ -119,6 +122,41 @@ struct Options {
   int num_ba_threads = 1;
   // Bound on the map (oldest redundant keyframes are culled beyond it).
   int max_keyframes = 2000;
+
+  // ---- Thresholds (defaults tuned on the default scene; docs/results/h4.md) ----
+  // Assumed feature noise in pixels; scales every chi-square test.
+  double pixel_sigma = 1.0;
+  // Features may lie this far outside the image (noise) before the frame is rejected.
+  double image_margin_px = 16.0;
+  // Initialisation: shared features, median ray parallax, and the age (in frames) after which
+  // the reference frame is replaced.
+  int init_min_points = 60;
+  double init_min_parallax_deg = 1.0;
+  int init_max_reference_age = 120;
+  // A frame with fewer pose inliers than this is lost (and relocalisation needs as many).
+  int min_tracked_points = 30;
+  // Keyframe when the tracked points fall below this fraction of the reference keyframe's,
+  double keyframe_tracked_ratio = 0.9;
+  // or when this many features have no map point yet (and are seen by a keyframe),
+  int keyframe_min_new_points = 50;
+  // or when the camera moved this fraction of the median scene depth since the last one,
+  double keyframe_baseline_ratio = 0.1;
+  // or after this long (seconds).
+  double keyframe_max_interval_s = 1.0;
+  // Local bundle adjustment: number of covisible keyframes optimised (others observing the
+  // points are held fixed), and the capacity of the keyframe queue in front of mapping.
+  int local_ba_window = 12;
+  int mapping_queue_capacity = 4;
+  // New points need this angle between their rays.
+  double min_triangulation_parallax_deg = 1.0;
+  // A keyframe is redundant when this fraction of its points is seen by >= 3 other keyframes.
+  double keyframe_redundancy = 0.9;
+  // Drift correction: triggered when a keyframe re-observes at least loop_min_points points
+  // unseen for loop_min_keyframe_gap keyframes, and their positions disagree with the
+  // current estimate by more than loop_min_error (fraction of the median depth).
+  int loop_min_points = 30;
+  int loop_min_keyframe_gap = 15;
+  double loop_min_error = 0.002;
 
   bool Check(std::string* why) const;
 };

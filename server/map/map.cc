@@ -1,0 +1,94 @@
+#include "map/map.h"
+
+#include <algorithm>
+
+namespace m2s::slam {
+
+KeyframeId Map::NextKeyframeId() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return next_keyframe_id_++;
+}
+
+uint64_t Map::revision() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return revision_;
+}
+
+MapDelta Map::MakeDeltaLocked(bool full) const {
+  MapDelta delta;
+  delta.revision = revision_;
+  delta.full = full;
+  delta.base_revision = full ? 0 : taken_revision_;
+  auto add_keyframe = [&](const Keyframe& kf) {
+    delta.keyframes.push_back({kf.id, kf.timestamp, kf.world_from_camera});
+  };
+  auto add_point = [&](const MapPoint& p) {
+    delta.point_ids.push_back(p.id);
+    delta.point_positions.push_back(p.position.cast<float>());
+  };
+  if (full) {
+    for (const auto& [id, kf] : data_.keyframes()) add_keyframe(kf);
+    std::vector<VertexId> ids;
+    ids.reserve(data_.points().size());
+    for (const auto& [id, p] : data_.points()) ids.push_back(id);
+    std::sort(ids.begin(), ids.end());
+    for (const VertexId id : ids) add_point(*data_.point(id));
+    return delta;
+  }
+  const ChangeLog& log = data_.changes();
+  for (const KeyframeId id : log.upserted_keyframes) {
+    if (const Keyframe* kf = data_.keyframe(id)) add_keyframe(*kf);
+  }
+  delta.removed_keyframes.assign(log.removed_keyframes.begin(), log.removed_keyframes.end());
+  std::vector<VertexId> ids(log.upserted_points.begin(), log.upserted_points.end());
+  std::sort(ids.begin(), ids.end());
+  for (const VertexId id : ids) {
+    if (const MapPoint* p = data_.point(id)) add_point(*p);
+  }
+  delta.removed_points.assign(log.removed_points.begin(), log.removed_points.end());
+  std::sort(delta.removed_points.begin(), delta.removed_points.end());
+  return delta;
+}
+
+MapDelta Map::TakeDelta() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  MapDelta delta;
+  if (next_delta_full_) {
+    delta = MakeDeltaLocked(/*full=*/true);
+    next_delta_full_ = false;
+  } else if (revision_ != taken_revision_) {
+    delta = MakeDeltaLocked(/*full=*/false);
+  } else {
+    delta.base_revision = delta.revision = revision_;
+    return delta;
+  }
+  data_.ClearChanges();
+  taken_revision_ = revision_;
+  return delta;
+}
+
+MapDelta Map::FullDelta() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return MakeDeltaLocked(/*full=*/true);
+}
+
+void Map::Clear() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  data_.Clear();
+  data_.ClearChanges();
+  ++revision_;
+  next_delta_full_ = true;
+}
+
+void Map::PublishCorrection(const Sim3& new_from_old) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  ++correction_.epoch;
+  correction_.new_from_old = new_from_old;
+}
+
+WorldCorrection Map::correction() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return correction_;
+}
+
+}  // namespace m2s::slam

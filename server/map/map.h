@@ -1,0 +1,91 @@
+// The SLAM map: MapData behind one mutex owned by this object, with revisions, coalesced map
+// deltas, drift-correction notices for the tracker, and Save/Load.
+//
+// Contract: one writer at a time (the mapping stage, or the system while it initialises or
+// resets); any number of readers. Read()/Write() run a callable under the map's mutex: keep
+// it short (copy what you need, solve outside, write back). Every Write() that mutates bumps
+// the revision by one.
+//
+//   Map map;
+//   map.Write([&](MapData& m) { m.AddKeyframe(std::move(kf)); });
+//   map.Read([&](const MapData& m) { n = m.points().size(); });
+//   slam::MapDelta delta = map.TakeDelta();
+#pragma once
+
+#include <cstdint>
+#include <mutex>
+#include <string>
+#include <utility>
+
+#include "m2s/common/camera.h"
+#include "m2s/common/status.h"
+#include "m2s/slam/system.h"
+#include "map/map_data.h"
+
+namespace m2s::slam {
+
+// Published by drift correction: poses expressed in the world before `epoch` map to the
+// corrected world through new_from_old (exact for the neighbourhood of the current keyframe).
+struct WorldCorrection {
+  uint64_t epoch = 0;
+  Sim3 new_from_old;
+};
+
+class Map {
+ public:
+  Map() = default;
+  Map(const Map&) = delete;
+  Map& operator=(const Map&) = delete;
+
+  template <typename F>
+  decltype(auto) Read(F&& f) const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return f(static_cast<const MapData&>(data_));
+  }
+  template <typename F>
+  decltype(auto) Write(F&& f) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    struct Bump {
+      Map* map;
+      uint64_t before;
+      ~Bump() {
+        if (map->data_.mutation_count() != before) ++map->revision_;
+      }
+    } bump{this, data_.mutation_count()};
+    return f(data_);
+  }
+
+  // A fresh keyframe id, never reused by this map (not even after Clear()).
+  KeyframeId NextKeyframeId();
+  uint64_t revision() const;
+
+  // Changes since the previous TakeDelta() (a full delta after Clear() or Load()).
+  MapDelta TakeDelta();
+  // The whole map (base_revision 0, full); leaves TakeDelta() undisturbed.
+  MapDelta FullDelta() const;
+
+  // Forgets everything; the next delta is full.
+  void Clear();
+
+  void PublishCorrection(const Sim3& new_from_old);
+  WorldCorrection correction() const;
+
+  // Versioned binary file: camera, keyframes (with all their features), points with observers.
+  Status Save(const std::string& path, const Camera& camera) const;
+  // Replaces the map with the file's content; fails (map untouched) on a bad or truncated file
+  // or when the file's camera differs from `camera`.
+  Status Load(const std::string& path, const Camera& camera);
+
+ private:
+  MapDelta MakeDeltaLocked(bool full) const;
+
+  mutable std::mutex mutex_;
+  MapData data_;
+  uint64_t revision_ = 0;
+  uint64_t taken_revision_ = 0;
+  bool next_delta_full_ = false;
+  KeyframeId next_keyframe_id_ = 0;
+  WorldCorrection correction_;
+};
+
+}  // namespace m2s::slam

@@ -1,0 +1,70 @@
+#include "mapping/triangulation.h"
+
+#include <cmath>
+#include <limits>
+
+#include <Eigen/SVD>
+
+namespace m2s::slam {
+
+std::optional<Eigen::Vector3d> TriangulateDlt(const Camera& camera,
+                                              const std::vector<Pose3>& camera_from_world,
+                                              const std::vector<Eigen::Vector2d>& uv) {
+  const size_t n = camera_from_world.size();
+  if (n < 2 || uv.size() != n) return std::nullopt;
+  Eigen::MatrixXd a(2 * n, 4);
+  for (size_t i = 0; i < n; ++i) {
+    Eigen::Matrix<double, 3, 4> p;
+    p.leftCols<3>() = camera_from_world[i].RotationMatrix();
+    p.col(3) = camera_from_world[i].translation();
+    const double x = (uv[i].x() - camera.cx) / camera.fx;
+    const double y = (uv[i].y() - camera.cy) / camera.fy;
+    a.row(2 * i) = x * p.row(2) - p.row(0);
+    a.row(2 * i + 1) = y * p.row(2) - p.row(1);
+  }
+  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(a, Eigen::ComputeFullV);
+  const Eigen::Vector4d h = svd.matrixV().col(3);
+  if (std::abs(h[3]) < 1e-12) return std::nullopt;
+  const Eigen::Vector3d point = h.head<3>() / h[3];
+  if (!point.allFinite()) return std::nullopt;
+  return point;
+}
+
+double ParallaxDeg(const Eigen::Vector3d& point, const Eigen::Vector3d& center_a,
+                   const Eigen::Vector3d& center_b) {
+  const Eigen::Vector3d ra = (point - center_a).normalized();
+  const Eigen::Vector3d rb = (point - center_b).normalized();
+  return std::atan2(ra.cross(rb).norm(), ra.dot(rb)) * 180.0 / M_PI;
+}
+
+double ReprojectionErrorSq(const Camera& camera, const Pose3& camera_from_world,
+                           const Eigen::Vector3d& point_world, const Eigen::Vector2d& uv) {
+  const Eigen::Vector3d pc = camera_from_world * point_world;
+  if (!(pc.z() > 0.0)) return std::numeric_limits<double>::infinity();
+  return (camera.Project(pc) - uv).squaredNorm();
+}
+
+std::optional<Eigen::Vector3d> TriangulateChecked(const Camera& camera,
+                                                  const TriangulationChecks& checks,
+                                                  const std::vector<Pose3>& camera_from_world,
+                                                  const std::vector<Eigen::Vector2d>& uv) {
+  const auto point = TriangulateDlt(camera, camera_from_world, uv);
+  if (!point) return std::nullopt;
+  const double max_err_sq = checks.max_reprojection_px * checks.max_reprojection_px;
+  double max_parallax = 0.0;
+  std::vector<Eigen::Vector3d> centers;
+  centers.reserve(camera_from_world.size());
+  for (size_t i = 0; i < camera_from_world.size(); ++i) {
+    const Eigen::Vector3d pc = camera_from_world[i] * *point;
+    if (!(pc.z() > checks.min_depth)) return std::nullopt;
+    if ((camera.Project(pc) - uv[i]).squaredNorm() > max_err_sq) return std::nullopt;
+    const Eigen::Vector3d c = camera_from_world[i].Inverse().translation();
+    for (const auto& other : centers)
+      max_parallax = std::max(max_parallax, ParallaxDeg(*point, c, other));
+    centers.push_back(c);
+  }
+  if (max_parallax < checks.min_parallax_deg) return std::nullopt;
+  return point;
+}
+
+}  // namespace m2s::slam

@@ -1,0 +1,45 @@
+// Two-view and multi-view triangulation with the checks every new map point must pass.
+//
+// Poses are camera_from_world (the form projection wants). All functions are pure.
+//
+//   auto p = TriangulateChecked(camera, checks, {cfw_a, cfw_b}, {uv_a, uv_b});
+//   if (p) map.AddPoint(id, *p, ...);
+#pragma once
+
+#include <optional>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "m2s/common/camera.h"
+#include "m2s/common/geometry.h"
+
+namespace m2s::slam {
+
+struct TriangulationChecks {
+  double min_parallax_deg = 1.0;      // angle between the two most separated rays
+  double max_reprojection_px = 2.45;  // sqrt(5.991) at sigma 1 px
+  double min_depth = 1e-6;            // cheirality (in front of every camera)
+};
+
+// Linear (DLT) triangulation in the world frame from >= 2 views; nullopt if degenerate.
+std::optional<Eigen::Vector3d> TriangulateDlt(const Camera& camera,
+                                              const std::vector<Pose3>& camera_from_world,
+                                              const std::vector<Eigen::Vector2d>& uv);
+
+// DLT followed by the checks: depth > min_depth in every view, reprojection error under the
+// bound in every view, and parallax (largest angle between rays) >= min_parallax_deg.
+std::optional<Eigen::Vector3d> TriangulateChecked(const Camera& camera,
+                                                  const TriangulationChecks& checks,
+                                                  const std::vector<Pose3>& camera_from_world,
+                                                  const std::vector<Eigen::Vector2d>& uv);
+
+// Angle in degrees at `point` between the rays to two camera centres.
+double ParallaxDeg(const Eigen::Vector3d& point, const Eigen::Vector3d& center_a,
+                   const Eigen::Vector3d& center_b);
+
+// Squared reprojection error in pixels; +inf when the point is behind the camera.
+double ReprojectionErrorSq(const Camera& camera, const Pose3& camera_from_world,
+                           const Eigen::Vector3d& point_world, const Eigen::Vector2d& uv);
+
+}  // namespace m2s::slam

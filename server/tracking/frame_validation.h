@@ -1,0 +1,47 @@
+// Validation of incoming frames, and their features sorted by vertex id.
+//
+// A frame is rejected (whole) when it is empty, has more features than allowed, a non-finite
+// uv or timestamp, a feature farther than the margin outside the image, a duplicated id, or
+// when its seq / timestamp goes back. Rejection reasons are short stable strings, counted per
+// reason in SystemStats::rejected_by_reason.
+//
+//   FrameValidator validator(options);
+//   SortedFeatures features;
+//   if (std::string why = validator.Validate(frame, &features); !why.empty()) { reject(why); }
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "m2s/slam/system.h"
+
+namespace m2s::slam {
+
+// Features of one frame, sorted by id (parallel arrays).
+struct SortedFeatures {
+  std::vector<VertexId> ids;
+  std::vector<Eigen::Vector2d> uvs;
+  size_t size() const { return ids.size(); }
+};
+
+class FrameValidator {
+ public:
+  explicit FrameValidator(const Options& options) : options_(options) {}
+
+  // Empty string when the frame is valid (then `out` holds its sorted features and the frame
+  // becomes the latest accepted one); otherwise the reason, and nothing changes.
+  std::string Validate(const Frame& frame, SortedFeatures* out);
+  void Reset() { last_seq_.reset(), last_timestamp_.reset(); }
+
+ private:
+  Options options_;
+  std::optional<int64_t> last_seq_;
+  std::optional<double> last_timestamp_;
+  std::vector<std::pair<VertexId, uint32_t>> order_;  // reused scratch
+};
+
+}  // namespace m2s::slam

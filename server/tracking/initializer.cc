@@ -1,0 +1,321 @@
+#include "tracking/initializer.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <opencv2/calib3d.hpp>
+#include <opencv2/core/eigen.hpp>
+
+#include "m2s/common/logging.h"
+#include "mapping/triangulation.h"
+#include "optimization/problems.h"
+
+namespace m2s::slam {
+namespace {
+
+constexpr double kChi2OneDof = 3.841;      // 95%, 1 dof (epipolar distance)
+constexpr double kChi2TwoDof = 5.991;      // 95%, 2 dof (transfer / reprojection error)
+constexpr double kHomographyRatio = 0.40;  // ORB-SLAM2: RH > 0.40 selects the homography
+constexpr double kAmbiguityRatio = 0.75;   // second best motion must explain fewer points
+constexpr double kMinGoodFraction = 0.9;   // of the model's inliers
+constexpr int kMaxMatches = 3000;          // subsampled beyond this (RANSAC cost)
+
+struct Matches {
+  std::vector<VertexId> ids;
+  std::vector<cv::Point2d> p0, p1;
+};
+
+Matches Intersect(const SortedFeatures& a, const SortedFeatures& b) {
+  Matches m;
+  size_t i = 0, j = 0;
+  while (i < a.size() && j < b.size()) {
+    if (a.ids[i] < b.ids[j]) {
+      ++i;
+    } else if (b.ids[j] < a.ids[i]) {
+      ++j;
+    } else {
+      m.ids.push_back(a.ids[i]);
+      m.p0.emplace_back(a.uvs[i].x(), a.uvs[i].y());
+      m.p1.emplace_back(b.uvs[j].x(), b.uvs[j].y());
+      ++i, ++j;
+    }
+  }
+  if (m.ids.size() > static_cast<size_t>(kMaxMatches)) {
+    Matches s;
+    const double step = static_cast<double>(m.ids.size()) / kMaxMatches;
+    for (int k = 0; k < kMaxMatches; ++k) {
+      const size_t idx = static_cast<size_t>(k * step);
+      s.ids.push_back(m.ids[idx]);
+      s.p0.push_back(m.p0[idx]);
+      s.p1.push_back(m.p1[idx]);
+    }
+    return s;
+  }
+  return m;
+}
+
+double ScoreHomography(const Eigen::Matrix3d& h, const Matches& m, double sigma) {
+  const Eigen::Matrix3d h_inv = h.inverse();
+  const double inv_var = 1.0 / (sigma * sigma);
+  double score = 0.0;
+  auto transfer = [](const Eigen::Matrix3d& t, const cv::Point2d& p) {
+    const Eigen::Vector3d q = t * Eigen::Vector3d(p.x, p.y, 1.0);
+    return Eigen::Vector2d(q.x() / q.z(), q.y() / q.z());
+  };
+  for (size_t i = 0; i < m.ids.size(); ++i) {
+    const double c1 =
+        (transfer(h, m.p0[i]) - Eigen::Vector2d(m.p1[i].x, m.p1[i].y)).squaredNorm() * inv_var;
+    const double c0 =
+        (transfer(h_inv, m.p1[i]) - Eigen::Vector2d(m.p0[i].x, m.p0[i].y)).squaredNorm() * inv_var;
+    if (!(c1 < kChi2TwoDof) || !(c0 < kChi2TwoDof)) continue;
+    score += (kChi2TwoDof - c1) + (kChi2TwoDof - c0);
+  }
+  return score;
+}
+
+double ScoreFundamental(const Eigen::Matrix3d& f, const Matches& m, double sigma) {
+  const double inv_var = 1.0 / (sigma * sigma);
+  double score = 0.0;
+  for (size_t i = 0; i < m.ids.size(); ++i) {
+    const Eigen::Vector3d x0(m.p0[i].x, m.p0[i].y, 1.0), x1(m.p1[i].x, m.p1[i].y, 1.0);
+    const Eigen::Vector3d l1 = f * x0, l0 = f.transpose() * x1;
+    const double d1 = x1.dot(l1), d0 = x0.dot(l0);
+    const double c1 = d1 * d1 / (l1.head<2>().squaredNorm()) * inv_var;
+    const double c0 = d0 * d0 / (l0.head<2>().squaredNorm()) * inv_var;
+    if (!(c1 < kChi2OneDof) || !(c0 < kChi2OneDof)) continue;
+    score += (kChi2TwoDof - c1) + (kChi2TwoDof - c0);
+  }
+  return score;
+}
+
+struct MotionCheck {
+  Pose3 camera1_from_camera0;
+  int good = 0;
+  double median_parallax_deg = 0.0;
+  std::vector<int> indices;  // into matches
+  std::vector<Eigen::Vector3d> points;
+  std::vector<double> parallax;
+};
+
+MotionCheck CheckMotion(const Options& options, const Matches& m, const std::vector<int>& inliers,
+                        const Eigen::Matrix3d& r, const Eigen::Vector3d& t) {
+  MotionCheck out;
+  out.camera1_from_camera0 = Pose3(r, t);
+  const std::vector<Pose3> poses = {Pose3::Identity(), out.camera1_from_camera0};
+  const Eigen::Vector3d c0 = Eigen::Vector3d::Zero();
+  const Eigen::Vector3d c1 = out.camera1_from_camera0.Inverse().translation();
+  const double max_err_sq = 4.0 * options.pixel_sigma * options.pixel_sigma;
+  for (const int i : inliers) {
+    const std::vector<Eigen::Vector2d> uv = {{m.p0[i].x, m.p0[i].y}, {m.p1[i].x, m.p1[i].y}};
+    const auto p = TriangulateDlt(options.camera, poses, uv);
+    if (!p) continue;
+    if (ReprojectionErrorSq(options.camera, poses[0], *p, uv[0]) > max_err_sq) continue;
+    if (ReprojectionErrorSq(options.camera, poses[1], *p, uv[1]) > max_err_sq) continue;
+    ++out.good;
+    out.indices.push_back(i);
+    out.points.push_back(*p);
+    out.parallax.push_back(ParallaxDeg(*p, c0, c1));
+  }
+  if (!out.parallax.empty()) {
+    std::vector<double> sorted = out.parallax;
+    std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+    out.median_parallax_deg = sorted[sorted.size() / 2];
+  }
+  return out;
+}
+
+}  // namespace
+
+std::optional<TwoViewReconstruction> ReconstructTwoView(const Options& options,
+                                                        const SortedFeatures& view0,
+                                                        const SortedFeatures& view1,
+                                                        std::string* why) {
+  auto fail = [why](const char* reason) -> std::optional<TwoViewReconstruction> {
+    if (why) *why = reason;
+    return std::nullopt;
+  };
+  const Matches m = Intersect(view0, view1);
+  const int n = static_cast<int>(m.ids.size());
+  if (n < options.init_min_points) return fail("too few shared features");
+  // Cheap gate: with less image motion than a fraction of the parallax bound there is no
+  // chance of enough parallax (rotation can only add image motion, not parallax).
+  std::vector<double> flow(n);
+  for (int i = 0; i < n; ++i) flow[i] = cv::norm(m.p1[i] - m.p0[i]);
+  std::nth_element(flow.begin(), flow.begin() + n / 2, flow.end());
+  const double min_flow = 0.25 * options.camera.fx * options.init_min_parallax_deg * M_PI / 180.0;
+  if (flow[n / 2] < min_flow) return fail("too little image motion");
+
+  cv::Mat k_cv;
+  cv::eigen2cv(options.camera.K(), k_cv);
+  const double sigma = options.pixel_sigma;
+  cv::Mat e_mask, h_mask;
+  const cv::Mat e_cv = cv::findEssentialMat(m.p0, m.p1, k_cv, cv::RANSAC, 0.999, sigma, e_mask);
+  const cv::Mat h_cv = cv::findHomography(m.p0, m.p1, cv::RANSAC, 2.0 * sigma, h_mask, 2000, 0.999);
+  if (e_cv.rows != 3 && h_cv.empty()) return fail("no epipolar or homography model");
+
+  Eigen::Matrix3d k = options.camera.K();
+  double score_e = 0.0, score_h = 0.0;
+  Eigen::Matrix3d e, h;
+  if (e_cv.rows == 3 && e_cv.cols == 3) {
+    cv::cv2eigen(e_cv, e);
+    const Eigen::Matrix3d f = k.inverse().transpose() * e * k.inverse();
+    score_e = ScoreFundamental(f, m, sigma);
+  }
+  if (!h_cv.empty()) {
+    cv::cv2eigen(h_cv, h);
+    score_h = ScoreHomography(h, m, sigma);
+  }
+  if (score_e + score_h <= 0.0) return fail("no model explains the matches");
+  const bool use_h = score_h / (score_e + score_h) > kHomographyRatio;
+
+  std::vector<int> inliers;
+  const cv::Mat& mask = use_h ? h_mask : e_mask;
+  for (int i = 0; i < n; ++i) {
+    if (mask.at<uchar>(i)) inliers.push_back(i);
+  }
+  if (static_cast<int>(inliers.size()) < options.init_min_points)
+    return fail("too few model inliers");
+
+  std::vector<std::pair<Eigen::Matrix3d, Eigen::Vector3d>> motions;
+  if (use_h) {
+    std::vector<cv::Mat> rs, ts, normals;
+    cv::decomposeHomographyMat(h_cv, k_cv, rs, ts, normals);
+    for (size_t i = 0; i < rs.size(); ++i) {
+      Eigen::Matrix3d r;
+      Eigen::Vector3d t;
+      cv::cv2eigen(rs[i], r);
+      cv::cv2eigen(ts[i], t);
+      motions.emplace_back(r, t);
+    }
+  } else {
+    cv::Mat r1_cv, r2_cv, t_cv;
+    cv::decomposeEssentialMat(e_cv, r1_cv, r2_cv, t_cv);
+    Eigen::Matrix3d r1, r2;
+    Eigen::Vector3d t;
+    cv::cv2eigen(r1_cv, r1);
+    cv::cv2eigen(r2_cv, r2);
+    cv::cv2eigen(t_cv, t);
+    motions = {{r1, t}, {r1, -t}, {r2, t}, {r2, -t}};
+  }
+  if (motions.empty()) return fail("model decomposition failed");
+
+  std::vector<MotionCheck> checks;
+  for (const auto& [r, t] : motions) {
+    if (t.norm() < 1e-12) continue;
+    checks.push_back(CheckMotion(options, m, inliers, r, t.normalized()));
+  }
+  if (checks.empty()) return fail("no translation between the views");
+  std::sort(checks.begin(), checks.end(),
+            [](const auto& a, const auto& b) { return a.good > b.good; });
+  const MotionCheck& best = checks[0];
+  const int min_good =
+      std::max(options.init_min_points,
+               static_cast<int>(kMinGoodFraction * static_cast<double>(inliers.size())));
+  if (best.good < min_good) return fail("too few points triangulate with the best motion");
+  if (checks.size() > 1 && checks[1].good > kAmbiguityRatio * best.good) {
+    return fail("ambiguous motion (rotation only or too little parallax)");
+  }
+  if (best.median_parallax_deg < options.init_min_parallax_deg) return fail("too little parallax");
+
+  TwoViewReconstruction out;
+  out.camera1_from_camera0 = best.camera1_from_camera0;
+  out.median_parallax_deg = best.median_parallax_deg;
+  out.used_homography = use_h;
+  const double min_point_parallax = 0.5 * options.min_triangulation_parallax_deg;
+  for (size_t i = 0; i < best.indices.size(); ++i) {
+    if (best.parallax[i] < min_point_parallax) continue;
+    out.ids.push_back(m.ids[best.indices[i]]);
+    out.points.push_back(best.points[i]);
+  }
+  if (static_cast<int>(out.ids.size()) < options.init_min_points) {
+    return fail("too few points with enough parallax");
+  }
+  return out;
+}
+
+std::optional<InitialMap> Initializer::Process(int64_t seq, double timestamp,
+                                               const SortedFeatures& features) {
+  auto set_reference = [&]() {
+    reference_ = InitialFrame{seq, timestamp, features, Pose3::Identity()};
+    frames_since_reference_ = 0;
+  };
+  if (!reference_ || features.size() < static_cast<size_t>(options_.init_min_points)) {
+    if (features.size() >= static_cast<size_t>(options_.init_min_points)) set_reference();
+    last_failure_ = "waiting for a reference frame";
+    return std::nullopt;
+  }
+  ++frames_since_reference_;
+  std::string why;
+  auto two_view = ReconstructTwoView(options_, reference_->features, features, &why);
+  if (!two_view) {
+    last_failure_ = why;
+    if (frames_since_reference_ > options_.init_max_reference_age ||
+        why == "too few shared features") {
+      set_reference();
+    }
+    return std::nullopt;
+  }
+
+  // Full bundle adjustment of the two views (the first one fixed), then scale: median depth 1.
+  BaProblem problem;
+  problem.keyframes = {{0, Pose3::Identity(), true}, {1, two_view->camera1_from_camera0, false}};
+  const SortedFeatures* views[2] = {&reference_->features, &features};
+  for (size_t i = 0; i < two_view->ids.size(); ++i) {
+    const VertexId id = two_view->ids[i];
+    problem.points.push_back({id, two_view->points[i], false});
+    for (int v = 0; v < 2; ++v) {
+      const auto& f = *views[v];
+      const auto it = std::lower_bound(f.ids.begin(), f.ids.end(), id);
+      problem.observations.push_back({v, static_cast<int>(problem.points.size() - 1),
+                                      f.uvs[static_cast<size_t>(it - f.ids.begin())]});
+    }
+  }
+  BundleAdjustmentOptions ba;
+  ba.pixel_sigma = options_.pixel_sigma;
+  ba.huber_delta_px = 2.0 * options_.pixel_sigma;
+  ba.max_iterations = 50;
+  ba.num_threads = options_.num_ba_threads;
+  const BundleAdjustmentResult result = BundleAdjust(options_.camera, ba, &problem);
+  if (!result.success) {
+    last_failure_ = "initial bundle adjustment failed";
+    set_reference();
+    return std::nullopt;
+  }
+  std::vector<bool> bad(problem.points.size(), false);
+  for (size_t o = 0; o < problem.observations.size(); ++o) {
+    if (o < result.outlier.size() && result.outlier[o])
+      bad[problem.observations[o].point_index] = true;
+  }
+  const Pose3 camera1_from_world = problem.keyframes[1].camera_from_world;
+  std::vector<double> depths;
+  InitialMap map;
+  for (size_t i = 0; i < problem.points.size(); ++i) {
+    const Eigen::Vector3d& p = problem.points[i].position_world;
+    if (bad[i] || !p.allFinite() || p.z() <= 0.0 || (camera1_from_world * p).z() <= 0.0) continue;
+    map.point_ids.push_back(problem.points[i].id);
+    map.points.push_back(p);
+    depths.push_back(p.z());
+  }
+  if (static_cast<int>(depths.size()) < options_.init_min_points) {
+    last_failure_ = "too few points after bundle adjustment";
+    set_reference();
+    return std::nullopt;
+  }
+  std::nth_element(depths.begin(), depths.begin() + depths.size() / 2, depths.end());
+  const double scale = 1.0 / depths[depths.size() / 2];
+  for (auto& p : map.points) p *= scale;
+  const Pose3 world_from_camera1 =
+      Pose3(camera1_from_world.rotation(), camera1_from_world.translation() * scale).Inverse();
+  map.first = *reference_;
+  map.first.world_from_camera = Pose3::Identity();
+  map.second = InitialFrame{seq, timestamp, features, world_from_camera1};
+  map.used_homography = two_view->used_homography;
+  M2S_LOG(kInfo) << "initialised from frames " << map.first.seq << " and " << seq << " with "
+                 << map.points.size() << " points ("
+                 << (map.used_homography ? "homography" : "essential") << ", median parallax "
+                 << two_view->median_parallax_deg << " deg)";
+  reference_.reset();
+  return map;
+}
+
+}  // namespace m2s::slam

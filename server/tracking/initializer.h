@@ -1,0 +1,74 @@
+// Monocular initialisation from two frames with enough parallax (ORB-SLAM2's scheme on
+// OpenCV solvers): essential matrix and homography by RANSAC, model selection by score ratio
+// (planar scenes pick the homography), triangulation of the candidate motions with cheirality,
+// reprojection and parallax checks, a unique best motion required, then a full bundle
+// adjustment of the two views and the scale fixed by median depth 1 in the first camera.
+// Pure rotation or too little parallax: no map (keep waiting, never a broken map).
+//
+// Not thread-safe (one per tracking thread).
+//
+//   Initializer init(options);
+//   if (auto map = init.Process(seq, timestamp, features)) { /* two keyframes + points */ }
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "m2s/slam/system.h"
+#include "tracking/frame_validation.h"
+
+namespace m2s::slam {
+
+struct TwoViewReconstruction {
+  Pose3 camera1_from_camera0;  // world = camera 0
+  std::vector<VertexId> ids;
+  std::vector<Eigen::Vector3d> points;  // camera 0 frame
+  double median_parallax_deg = 0.0;
+  bool used_homography = false;
+};
+
+// Two-view reconstruction from matched features (matched by id). nullopt, with the reason in
+// `why`, when the views cannot be reconstructed reliably.
+std::optional<TwoViewReconstruction> ReconstructTwoView(const Options& options,
+                                                        const SortedFeatures& view0,
+                                                        const SortedFeatures& view1,
+                                                        std::string* why);
+
+struct InitialFrame {
+  int64_t seq = 0;
+  double timestamp = 0.0;
+  SortedFeatures features;
+  Pose3 world_from_camera;
+};
+
+struct InitialMap {
+  InitialFrame first;  // world_from_camera = identity
+  InitialFrame second;
+  std::vector<VertexId> point_ids;
+  std::vector<Eigen::Vector3d> points;  // world; median depth in the first camera is 1
+  bool used_homography = false;
+};
+
+class Initializer {
+ public:
+  explicit Initializer(const Options& options) : options_(options) {}
+
+  // Feeds one valid frame. Returns the initial map once two frames (the reference and this
+  // one) reconstruct; otherwise nullopt (last_failure() says why).
+  std::optional<InitialMap> Process(int64_t seq, double timestamp, const SortedFeatures& features);
+  void Reset() { reference_.reset(), frames_since_reference_ = 0; }
+  const std::string& last_failure() const { return last_failure_; }
+  // The reference frame's seq, when one is held.
+  std::optional<int64_t> reference_seq() const {
+    return reference_ ? std::optional<int64_t>(reference_->seq) : std::nullopt;
+  }
+
+ private:
+  Options options_;
+  std::optional<InitialFrame> reference_;
+  int frames_since_reference_ = 0;
+  std::string last_failure_;
+};
+
+}  // namespace m2s::slam
