@@ -1,0 +1,291 @@
+// CpuProjector: per-frame orchestration over the worker pool (see cpu_projector.h).
+#include "m2s/common/cpu_projector.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
+#include <thread>
+
+#include "cpu_projector_internal.h"
+
+namespace m2s {
+
+using internal::AlignedVector;
+using internal::DepthBuffer;
+using internal::FrameConstants;
+using internal::RasterVertex;
+using internal::WorkerPool;
+
+namespace {
+
+// Vertices processed per kernel call: the block's outputs stay in L1 before compaction.
+constexpr size_t kBlockSize = 1024;
+// Below this many vertices per worker, waking another thread costs more than it saves.
+constexpr size_t kMinVerticesPerWorker = 32768;
+// Chunk boundaries are multiples of this, so every chunk starts on a cache line.
+constexpr size_t kChunkAlignment = 64;
+constexpr int kMaxThreads = 256;
+
+}  // namespace
+
+bool ProjectorOptions::Check(std::string* why) const {
+  auto fail = [why](const char* msg) {
+    if (why) *why = msg;
+    return false;
+  };
+  if (!std::isfinite(occlusion_resolution_scale) || occlusion_resolution_scale <= 0.0 ||
+      occlusion_resolution_scale > 1.0)
+    return fail("occlusion_resolution_scale must be in (0, 1]");
+  if (!std::isfinite(occlusion_depth_bias_relative) || occlusion_depth_bias_relative < 0.0)
+    return fail("occlusion_depth_bias_relative must be finite and >= 0");
+  if (!std::isfinite(occlusion_depth_bias_m) || occlusion_depth_bias_m < 0.0)
+    return fail("occlusion_depth_bias_m must be finite and >= 0");
+  if (num_threads < 0 || num_threads > kMaxThreads)
+    return fail("num_threads must be in [0, 256] (0: hardware concurrency)");
+  return true;
+}
+
+struct CpuProjector::Impl {
+  struct WorkerScratch {
+    AlignedVector<float> u, v, depth;
+    AlignedVector<uint8_t> visible;
+    std::vector<ProjectedVertex> out;  // grows to the chunk size + 1, never shrinks
+    size_t count = 0;
+  };
+
+  ProjectorOptions options;
+  size_t num_vertices = 0;
+  AlignedVector<float> x, y, z;
+  std::vector<uint32_t> triangles;
+  std::unique_ptr<WorkerPool> pool;
+  std::vector<WorkerScratch> scratch;
+
+  // Occlusion: per-vertex kernel outputs for the whole scene, and the depth buffer.
+  AlignedVector<float> all_u, all_v, all_depth;
+  AlignedVector<uint8_t> all_visible;
+  DepthBuffer depth_buffer;
+
+  // Per-frame state read by the workers.
+  FrameConstants constants{};
+  Camera camera;
+  Eigen::Matrix3d camera_from_world = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d camera_centre = Eigen::Vector3d::Zero();
+  size_t chunk_size = 0;
+  int active_workers = 1;
+
+  size_t ChunkBegin(int worker) const { return std::min(num_vertices, worker * chunk_size); }
+  size_t ChunkEnd(int worker) const { return std::min(num_vertices, (worker + 1) * chunk_size); }
+  ProjectedVertex* ReserveOut(WorkerScratch& s, size_t n) {
+    if (s.out.size() < n + 1) s.out.resize(n + 1);
+    return s.out.data();
+  }
+
+  void ProjectChunk(int worker);
+  void TransformChunk(int worker);
+  void RasterizeBand(int band, int num_bands);
+  void TestChunk(int worker);
+};
+
+void CpuProjector::Impl::ProjectChunk(int worker) {
+  WorkerScratch& s = scratch[worker];
+  const size_t begin = ChunkBegin(worker), end = ChunkEnd(worker);
+  ProjectedVertex* out = ReserveOut(s, end - begin);
+  size_t count = 0;
+  for (size_t block = begin; block < end; block += kBlockSize) {
+    const size_t n = std::min(kBlockSize, end - block);
+    internal::TransformVertices(constants, x.data() + block, y.data() + block, z.data() + block, n,
+                                s.u.data(), s.v.data(), s.depth.data(), s.visible.data());
+    count += internal::CompactVisible(s.u.data(), s.v.data(), s.depth.data(), s.visible.data(), n,
+                                      static_cast<VertexId>(block), out + count);
+  }
+  s.count = count;
+}
+
+void CpuProjector::Impl::TransformChunk(int worker) {
+  const size_t begin = ChunkBegin(worker), end = ChunkEnd(worker);
+  if (end <= begin) return;
+  internal::TransformVertices(constants, x.data() + begin, y.data() + begin, z.data() + begin,
+                              end - begin, all_u.data() + begin, all_v.data() + begin,
+                              all_depth.data() + begin, all_visible.data() + begin);
+}
+
+void CpuProjector::Impl::RasterizeBand(int band, int num_bands) {
+  const int height = depth_buffer.height();
+  const int row_begin = static_cast<int>(static_cast<int64_t>(height) * band / num_bands);
+  const int row_end = static_cast<int>(static_cast<int64_t>(height) * (band + 1) / num_bands);
+  if (row_end <= row_begin) return;
+  depth_buffer.Clear(row_begin, row_end);
+  const double scale_x = static_cast<double>(depth_buffer.width()) / camera.width;
+  const double scale_y = static_cast<double>(height) / camera.height;
+  const float near = constants.near, far = constants.far;
+  const float band_top = static_cast<float>(row_begin) - 1.f;
+  const float band_bottom = static_cast<float>(row_end) + 1.f;
+  const float buffer_right = static_cast<float>(depth_buffer.width()) + 1.f;
+  const size_t num_triangles = triangles.size() / 3;
+  for (size_t t = 0; t < num_triangles; ++t) {
+    const uint32_t* idx = &triangles[3 * t];
+    const float z0 = all_depth[idx[0]], z1 = all_depth[idx[1]], z2 = all_depth[idx[2]];
+    const int in_front = (z0 >= near) + (z1 >= near) + (z2 >= near);
+    if (in_front == 0 || (z0 > far && z1 > far && z2 > far)) continue;
+    if (in_front == 3) {
+      // Cheap rejection in float against the band, with a pixel of margin.
+      const float y0 = all_v[idx[0]] * static_cast<float>(scale_y);
+      const float y1 = all_v[idx[1]] * static_cast<float>(scale_y);
+      const float y2 = all_v[idx[2]] * static_cast<float>(scale_y);
+      if (std::max({y0, y1, y2}) < band_top || std::min({y0, y1, y2}) > band_bottom) continue;
+      const float x0 = all_u[idx[0]] * static_cast<float>(scale_x);
+      const float x1 = all_u[idx[1]] * static_cast<float>(scale_x);
+      const float x2 = all_u[idx[2]] * static_cast<float>(scale_x);
+      if (std::max({x0, x1, x2}) < -1.f || std::min({x0, x1, x2}) > buffer_right) continue;
+      const RasterVertex a{x0, y0, 1.0 / z0}, b{x1, y1, 1.0 / z1}, c{x2, y2, 1.0 / z2};
+      internal::RasterizeTriangle(a, b, c, row_begin, row_end, &depth_buffer);
+    } else {
+      Eigen::Vector3d p_camera[3];
+      for (int k = 0; k < 3; ++k) {
+        const Eigen::Vector3d p(x[idx[k]], y[idx[k]], z[idx[k]]);
+        p_camera[k] = camera_from_world * (p - camera_centre);
+      }
+      internal::ClipAndRasterizeTriangle(p_camera, camera, scale_x, scale_y, row_begin, row_end,
+                                         &depth_buffer);
+    }
+  }
+}
+
+void CpuProjector::Impl::TestChunk(int worker) {
+  WorkerScratch& s = scratch[worker];
+  const size_t begin = ChunkBegin(worker), end = ChunkEnd(worker);
+  ProjectedVertex* out = ReserveOut(s, end - begin);
+  const float scale_x = static_cast<float>(depth_buffer.width()) / static_cast<float>(camera.width);
+  const float scale_y =
+      static_cast<float>(depth_buffer.height()) / static_cast<float>(camera.height);
+  const float relative = 1.f + static_cast<float>(options.occlusion_depth_bias_relative);
+  const float absolute = static_cast<float>(options.occlusion_depth_bias_m);
+  const int max_x = depth_buffer.width() - 1, max_y = depth_buffer.height() - 1;
+  size_t count = 0;
+  for (size_t i = begin; i < end; ++i) {
+    if (!all_visible[i]) continue;
+    const int bx = std::clamp(static_cast<int>(std::floor(all_u[i] * scale_x)), 0, max_x);
+    const int by = std::clamp(static_cast<int>(std::floor(all_v[i] * scale_y)), 0, max_y);
+    const float nearest = depth_buffer.Max3x3(bx, by);
+    if (all_depth[i] <= nearest * relative + absolute) {
+      out[count++] = ProjectedVertex{static_cast<VertexId>(i), all_u[i], all_v[i], all_depth[i]};
+    }
+  }
+  s.count = count;
+}
+
+CpuProjector::CpuProjector(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+CpuProjector::~CpuProjector() = default;
+
+size_t CpuProjector::num_vertices() const { return impl_->num_vertices; }
+int CpuProjector::num_threads() const { return impl_->pool->size(); }
+
+Expected<std::unique_ptr<CpuProjector>> CpuProjector::Create(const Scene& scene,
+                                                             const ProjectorOptions& options) {
+  std::string why;
+  if (!options.Check(&why)) return Expected<std::unique_ptr<CpuProjector>>::Error(why);
+  const size_t n = scene.positions.size();
+  if (n >= std::numeric_limits<VertexId>::max()) {
+    return Expected<std::unique_ptr<CpuProjector>>::Error(
+        "scene has too many vertices for 32-bit ids");
+  }
+  if (scene.triangles.size() % 3 != 0) {
+    return Expected<std::unique_ptr<CpuProjector>>::Error(
+        "scene triangle index count is not a multiple of 3");
+  }
+  for (uint32_t index : scene.triangles) {
+    if (index >= n) {
+      return Expected<std::unique_ptr<CpuProjector>>::Error(
+          "scene triangle index " + std::to_string(index) + " out of range (" + std::to_string(n) +
+          " vertices)");
+    }
+  }
+  auto impl = std::make_unique<Impl>();
+  impl->options = options;
+  impl->num_vertices = n;
+  impl->x.resize(n);
+  impl->y.resize(n);
+  impl->z.resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3f& p = scene.positions[i];
+    if (!p.allFinite()) {
+      return Expected<std::unique_ptr<CpuProjector>>::Error("scene vertex " + std::to_string(i) +
+                                                            " has a non-finite position");
+    }
+    impl->x[i] = p.x();
+    impl->y[i] = p.y();
+    impl->z[i] = p.z();
+  }
+  int threads = options.num_threads;
+  if (threads == 0) threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  impl->pool = std::make_unique<WorkerPool>(threads);
+  impl->scratch.resize(threads);
+  for (Impl::WorkerScratch& s : impl->scratch) {
+    s.u.resize(kBlockSize);
+    s.v.resize(kBlockSize);
+    s.depth.resize(kBlockSize);
+    s.visible.resize(kBlockSize);
+  }
+  if (options.occlusion) {
+    impl->triangles = scene.triangles;
+    impl->all_u.resize(n);
+    impl->all_v.resize(n);
+    impl->all_depth.resize(n);
+    impl->all_visible.resize(n);
+  }
+  return std::unique_ptr<CpuProjector>(new CpuProjector(std::move(impl)));
+}
+
+Status CpuProjector::Project(const Pose3& world_from_camera, const Camera& camera,
+                             std::vector<ProjectedVertex>* out) {
+  if (out == nullptr) return Status::Error("CpuProjector::Project: null output");
+  out->clear();
+  std::string why;
+  if (!camera.Check(&why)) return Status::Error(why);
+  if (!world_from_camera.AllFinite()) return Status::Error("camera pose is not finite");
+
+  Impl& m = *impl_;
+  m.constants = internal::MakeFrameConstants(world_from_camera, camera);
+  m.camera = camera;
+  m.camera_from_world = world_from_camera.RotationMatrix().transpose();
+  m.camera_centre = world_from_camera.translation();
+  const int pool_size = m.pool->size();
+  m.active_workers = static_cast<int>(std::clamp<size_t>(m.num_vertices / kMinVerticesPerWorker, 1,
+                                                         static_cast<size_t>(pool_size)));
+  const size_t per_worker = (m.num_vertices + m.active_workers - 1) / m.active_workers;
+  m.chunk_size = std::max<size_t>(
+      kChunkAlignment, (per_worker + kChunkAlignment - 1) / kChunkAlignment * kChunkAlignment);
+
+  if (!m.options.occlusion) {
+    auto project = [&m](int worker) {
+      if (worker < m.active_workers) m.ProjectChunk(worker);
+    };
+    m.pool->Run(project);
+  } else {
+    const double s = m.options.occlusion_resolution_scale;
+    m.depth_buffer.Resize(std::max(1, static_cast<int>(std::lround(camera.width * s))),
+                          std::max(1, static_cast<int>(std::lround(camera.height * s))));
+    auto transform = [&m](int worker) {
+      if (worker < m.active_workers) m.TransformChunk(worker);
+    };
+    m.pool->Run(transform);
+    auto rasterize = [&m, pool_size](int worker) { m.RasterizeBand(worker, pool_size); };
+    m.pool->Run(rasterize);
+    auto test = [&m](int worker) {
+      if (worker < m.active_workers) m.TestChunk(worker);
+    };
+    m.pool->Run(test);
+  }
+  size_t total = 0;
+  for (int w = 0; w < m.active_workers; ++w) total += m.scratch[w].count;
+  if (out->capacity() < total) out->reserve(total);
+  for (int w = 0; w < m.active_workers; ++w) {
+    const std::vector<ProjectedVertex>& part = m.scratch[w].out;
+    out->insert(out->end(), part.begin(),
+                part.begin() + static_cast<ptrdiff_t>(m.scratch[w].count));
+  }
+  return Status::Ok();
+}
+
+}  // namespace m2s

@@ -1,0 +1,146 @@
+// Internals of CpuProjector: aligned storage, the persistent worker pool, the vectorisable
+// per-vertex kernel and the software depth buffer. Not part of the public API.
+#pragma once
+
+#include <condition_variable>
+#include <cstddef>
+#include <cstdint>
+#include <cstdlib>
+#include <limits>
+#include <mutex>
+#include <new>
+#include <thread>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "m2s/common/camera.h"
+#include "m2s/common/geometry.h"
+#include "m2s/common/types.h"
+
+namespace m2s::internal {
+
+inline constexpr size_t kSimdAlignment = 64;
+
+// Minimal allocator giving 64-byte aligned blocks, so the SoA arrays start on cache lines.
+template <typename T>
+struct AlignedAllocator {
+  using value_type = T;
+  AlignedAllocator() = default;
+  template <typename U>
+  AlignedAllocator(const AlignedAllocator<U>&) {}  // NOLINT: rebinding
+  T* allocate(size_t n) {
+    const size_t bytes = (n * sizeof(T) + kSimdAlignment - 1) / kSimdAlignment * kSimdAlignment;
+    void* p = std::aligned_alloc(kSimdAlignment, bytes == 0 ? kSimdAlignment : bytes);
+    if (p == nullptr) throw std::bad_alloc();
+    return static_cast<T*>(p);
+  }
+  void deallocate(T* p, size_t) { std::free(p); }
+  template <typename U>
+  bool operator==(const AlignedAllocator<U>&) const {
+    return true;
+  }
+};
+
+template <typename T>
+using AlignedVector = std::vector<T, AlignedAllocator<T>>;
+
+// A fixed set of threads that run one task per call to Run(), each with its worker index.
+// The calling thread acts as worker 0; workers 1..size()-1 are owned threads that wait on a
+// condition variable between calls and are joined on destruction. Run() is not reentrant and
+// must be called from one thread at a time (the projector's owner).
+class WorkerPool {
+ public:
+  explicit WorkerPool(int size);
+  ~WorkerPool();
+  WorkerPool(const WorkerPool&) = delete;
+  WorkerPool& operator=(const WorkerPool&) = delete;
+
+  int size() const { return static_cast<int>(threads_.size()) + 1; }
+
+  // Calls task(worker) for worker in [0, size()) concurrently and returns when all are done.
+  // No allocation: the task is passed by reference through a type-erased thunk.
+  template <typename Task>
+  void Run(Task& task) {
+    RunErased(&task, [](void* t, int worker) { (*static_cast<Task*>(t))(worker); });
+  }
+
+ private:
+  using Thunk = void (*)(void*, int);
+  void RunErased(void* task, Thunk thunk);
+  void WorkerLoop(int worker);
+
+  std::vector<std::thread> threads_;
+  std::mutex mutex_;
+  std::condition_variable start_cv_;
+  std::condition_variable done_cv_;
+  uint64_t generation_ = 0;
+  int pending_ = 0;
+  bool stop_ = false;
+  void* task_ = nullptr;
+  Thunk thunk_ = nullptr;
+};
+
+// Per-frame constants of the vertex kernel, in float. The camera centre is split into a high
+// and a low float part so that (x - centre) keeps full float precision relative to the
+// vertex-camera distance, even far from the world origin.
+struct FrameConstants {
+  float r[9];  // camera_from_world rotation, row major
+  float centre_hi[3];
+  float centre_lo[3];
+  float fx, fy, cx, cy;
+  float near, far;
+  float width, height;
+};
+
+FrameConstants MakeFrameConstants(const Pose3& world_from_camera, const Camera& camera);
+
+// For vertices [0, n) of the given SoA arrays: u, v (pixels), depth (camera Z) and visible
+// (1 when near <= Z <= far and (u, v) is inside the image, else 0). Branch-free and
+// vectorised; the same code computes every output of the projector.
+void TransformVertices(const FrameConstants& k, const float* x, const float* y, const float* z,
+                       size_t n, float* u, float* v, float* depth, uint8_t* visible);
+
+// Appends (first_id + i, u[i], v[i], depth[i]) for every i < n with visible[i] to `out`,
+// which must have room for n + 1 entries; returns the number written.
+size_t CompactVisible(const float* u, const float* v, const float* depth, const uint8_t* visible,
+                      size_t n, VertexId first_id, ProjectedVertex* out);
+
+// The software depth buffer used for occlusion (see cpu_projector.h for the exact rule).
+class DepthBuffer {
+ public:
+  // Sets the size for this frame (allocates only when the size grows).
+  void Resize(int width, int height);
+  int width() const { return width_; }
+  int height() const { return height_; }
+  // Fills rows [row_begin, row_end) with +infinity.
+  void Clear(int row_begin, int row_end);
+  float* row(int y) { return data_.data() + static_cast<size_t>(y) * width_; }
+  const float* row(int y) const { return data_.data() + static_cast<size_t>(y) * width_; }
+  // Largest depth over the 3x3 pixels around (x, y), clipped to the buffer.
+  float Max3x3(int x, int y) const;
+
+ private:
+  int width_ = 0;
+  int height_ = 0;
+  AlignedVector<float> data_;
+};
+
+// A vertex of a triangle in depth-buffer pixel coordinates with its inverse camera depth.
+struct RasterVertex {
+  double x, y, inv_z;
+};
+
+// Rasterises one triangle into rows [row_begin, row_end) of the buffer, keeping the minimum
+// camera depth. Samples at pixel centres with the top-left fill rule; depth interpolated
+// perspective-correctly (1/Z is affine in screen space).
+void RasterizeTriangle(const RasterVertex& a, const RasterVertex& b, const RasterVertex& c,
+                       int row_begin, int row_end, DepthBuffer* buffer);
+
+// Clips the camera-frame triangle against Z >= near and rasterises the result (0 to 2
+// triangles). scale_x/scale_y map image pixels to buffer pixels.
+void ClipAndRasterizeTriangle(const Eigen::Vector3d (&p_camera)[3], const Camera& camera,
+                              double scale_x, double scale_y, int row_begin, int row_end,
+                              DepthBuffer* buffer);
+
+}  // namespace m2s::internal

@@ -1,0 +1,148 @@
+// The vectorisable vertex kernel and the persistent worker pool of CpuProjector.
+#include <cstring>
+
+#include "cpu_projector_internal.h"
+
+// On x86-64 with GCC, compile the kernel twice (baseline SSE2 and x86-64-v3: AVX2 + FMA) and
+// pick at load time. Without it the baseline SSE2 build is used everywhere.
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && defined(__ELF__)
+#define M2S_KERNEL_CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
+#else
+#define M2S_KERNEL_CLONES
+#endif
+
+namespace m2s::internal {
+
+WorkerPool::WorkerPool(int size) {
+  for (int worker = 1; worker < size; ++worker) {
+    threads_.emplace_back([this, worker] { WorkerLoop(worker); });
+  }
+}
+
+WorkerPool::~WorkerPool() {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stop_ = true;
+  }
+  start_cv_.notify_all();
+  for (std::thread& t : threads_) t.join();
+}
+
+void WorkerPool::RunErased(void* task, Thunk thunk) {
+  if (threads_.empty()) {
+    thunk(task, 0);
+    return;
+  }
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    task_ = task;
+    thunk_ = thunk;
+    pending_ = static_cast<int>(threads_.size());
+    ++generation_;
+  }
+  start_cv_.notify_all();
+  thunk(task, 0);
+  std::unique_lock<std::mutex> lock(mutex_);
+  done_cv_.wait(lock, [this] { return pending_ == 0; });
+}
+
+void WorkerPool::WorkerLoop(int worker) {
+  uint64_t seen = 0;
+  for (;;) {
+    void* task;
+    Thunk thunk;
+    {
+      std::unique_lock<std::mutex> lock(mutex_);
+      start_cv_.wait(lock, [&] { return stop_ || generation_ != seen; });
+      if (stop_) return;
+      seen = generation_;
+      task = task_;
+      thunk = thunk_;
+    }
+    thunk(task, worker);
+    bool last;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      last = --pending_ == 0;
+    }
+    if (last) done_cv_.notify_one();
+  }
+}
+
+FrameConstants MakeFrameConstants(const Pose3& world_from_camera, const Camera& camera) {
+  FrameConstants k;
+  const Eigen::Matrix3d camera_from_world = world_from_camera.RotationMatrix().transpose();
+  for (int row = 0; row < 3; ++row) {
+    for (int col = 0; col < 3; ++col)
+      k.r[3 * row + col] = static_cast<float>(camera_from_world(row, col));
+  }
+  const Eigen::Vector3d& centre = world_from_camera.translation();
+  for (int i = 0; i < 3; ++i) {
+    k.centre_hi[i] = static_cast<float>(centre[i]);
+    k.centre_lo[i] = static_cast<float>(centre[i] - static_cast<double>(k.centre_hi[i]));
+  }
+  k.fx = static_cast<float>(camera.fx);
+  k.fy = static_cast<float>(camera.fy);
+  k.cx = static_cast<float>(camera.cx);
+  k.cy = static_cast<float>(camera.cy);
+  k.near = static_cast<float>(camera.near);
+  k.far = static_cast<float>(camera.far);
+  k.width = static_cast<float>(camera.width);
+  k.height = static_cast<float>(camera.height);
+  return k;
+}
+
+M2S_KERNEL_CLONES
+void TransformVertices(const FrameConstants& k, const float* __restrict x,
+                       const float* __restrict y, const float* __restrict z, size_t n,
+                       float* __restrict u, float* __restrict v, float* __restrict depth,
+                       uint8_t* __restrict visible) {
+  const float r0 = k.r[0], r1 = k.r[1], r2 = k.r[2], r3 = k.r[3], r4 = k.r[4], r5 = k.r[5],
+              r6 = k.r[6], r7 = k.r[7], r8 = k.r[8];
+  const float chx = k.centre_hi[0], chy = k.centre_hi[1], chz = k.centre_hi[2];
+  const float clx = k.centre_lo[0], cly = k.centre_lo[1], clz = k.centre_lo[2];
+  const float fx = k.fx, fy = k.fy, cx = k.cx, cy = k.cy;
+  const float near = k.near, far = k.far, width = k.width, height = k.height;
+  for (size_t i = 0; i < n; ++i) {
+    const float dx = (x[i] - chx) - clx;
+    const float dy = (y[i] - chy) - cly;
+    const float dz = (z[i] - chz) - clz;
+    const float cam_x = r0 * dx + r1 * dy + r2 * dz;
+    const float cam_y = r3 * dx + r4 * dy + r5 * dz;
+    const float cam_z = r6 * dx + r7 * dy + r8 * dz;
+    const float pu = fx * (cam_x / cam_z) + cx;
+    const float pv = fy * (cam_y / cam_z) + cy;
+    // Non-short-circuit '&' keeps the loop free of branches; NaN compares false.
+    const bool in =
+        (cam_z >= near) & (cam_z <= far) & (pu >= 0.f) & (pu < width) & (pv >= 0.f) & (pv < height);
+    u[i] = pu;
+    v[i] = pv;
+    depth[i] = cam_z;
+    visible[i] = static_cast<uint8_t>(in);
+  }
+}
+
+size_t CompactVisible(const float* __restrict u, const float* __restrict v,
+                      const float* __restrict depth, const uint8_t* __restrict visible, size_t n,
+                      VertexId first_id, ProjectedVertex* __restrict out) {
+  size_t count = 0;
+  size_t i = 0;
+  // Visibility comes in runs (neighbouring ids are neighbouring surface points): skip eight
+  // invisible vertices at a time, and write branch-free inside mixed groups.
+  for (; i + 8 <= n; i += 8) {
+    uint64_t word;
+    std::memcpy(&word, visible + i, sizeof(word));
+    if (word == 0) continue;
+    for (size_t j = i; j < i + 8; ++j) {
+      out[count] = ProjectedVertex{first_id + static_cast<VertexId>(j), u[j], v[j], depth[j]};
+      count += visible[j];
+    }
+  }
+  for (; i < n; ++i) {
+    out[count] = ProjectedVertex{first_id + static_cast<VertexId>(i), u[i], v[i], depth[i]};
+    count += visible[i];
+  }
+  return count;
+}
+
+}  // namespace m2s::internal
