@@ -9,6 +9,7 @@
 #pragma once
 
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include <Eigen/Core>
@@ -26,6 +27,9 @@ struct PoseOnlyOptions {
   double pixel_sigma = 1.0;       // assumed feature noise (pixels)
   int rounds = 4;                 // optimise / classify outliers rounds (ORB-SLAM2 style)
   int max_iterations_per_round = 10;
+  // false: hand-written Levenberg-Marquardt on the 6-dof pose with analytic Jacobians (fast,
+  // no allocation per iteration); true: the same problem on Ceres (reference, ~10x slower).
+  bool use_ceres = false;
 
   bool Check(std::string* why) const;
 };
