@@ -114,7 +114,7 @@ struct HeadMotionOptions {
   double eye_height_m = 1.6;
   double walking_speed_mps = 0.9;   // peak speed on a segment
   double min_segment_m = 1.0;       // shortest walk between two waypoints
-  double yaw_amplitude_deg = 35.0;  // look-around amplitude around the walking direction
+  double yaw_amplitude_deg = 30.0;  // look-around amplitude around the walking direction
   double pitch_amplitude_deg = 12.0;
   double pitch_bias_deg = -8.0;  // looking slightly down on average
   double roll_amplitude_deg = 2.0;
