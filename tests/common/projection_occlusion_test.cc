@@ -1,0 +1,167 @@
+// CpuProjector occlusion on scenes built so the hidden set is known exactly.
+#include <algorithm>
+#include <set>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "m2s/common/cpu_projector.h"
+
+namespace m2s {
+namespace {
+
+// A camera at the world origin looking along +z (camera axes == world axes).
+const Camera kCamera{1280, 960, 1000.0, 1000.0, 640.0, 480.0, 0.05, 50.0};
+
+struct Range {
+  VertexId begin, end;
+};
+
+// Adds an (n1 x n2)-cell grid of triangles spanning origin + [0,1] e1 + [0,1] e2.
+Range AddGrid(Scene* scene, const Eigen::Vector3f& origin, const Eigen::Vector3f& e1,
+              const Eigen::Vector3f& e2, int n1, int n2) {
+  const VertexId first = static_cast<VertexId>(scene->positions.size());
+  for (int j = 0; j <= n2; ++j) {
+    for (int i = 0; i <= n1; ++i) {
+      scene->positions.push_back(origin + e1 * (static_cast<float>(i) / n1) +
+                                 e2 * (static_cast<float>(j) / n2));
+    }
+  }
+  auto at = [&](int i, int j) { return first + static_cast<VertexId>(j * (n1 + 1) + i); };
+  for (int j = 0; j < n2; ++j) {
+    for (int i = 0; i < n1; ++i) {
+      scene->triangles.insert(scene->triangles.end(), {at(i, j), at(i + 1, j), at(i + 1, j + 1)});
+      scene->triangles.insert(scene->triangles.end(), {at(i, j), at(i + 1, j + 1), at(i, j + 1)});
+    }
+  }
+  return {first, static_cast<VertexId>(scene->positions.size())};
+}
+
+struct Box {
+  Range front, back, left, right, top, bottom;
+};
+
+// An axis-aligned box [lo, hi], each face an n x n grid (edge vertices duplicated per face).
+Box AddBox(Scene* scene, const Eigen::Vector3f& lo, const Eigen::Vector3f& hi, int n) {
+  const Eigen::Vector3f d = hi - lo;
+  const Eigen::Vector3f ex(d.x(), 0, 0), ey(0, d.y(), 0), ez(0, 0, d.z());
+  Box box;
+  box.front = AddGrid(scene, lo, ex, ey, n, n);
+  box.back = AddGrid(scene, lo + ez, ex, ey, n, n);
+  box.left = AddGrid(scene, lo, ey, ez, n, n);
+  box.right = AddGrid(scene, lo + ex, ey, ez, n, n);
+  box.top = AddGrid(scene, lo, ex, ez, n, n);
+  box.bottom = AddGrid(scene, lo + ey, ex, ez, n, n);
+  return box;
+}
+
+std::set<VertexId> ProjectIds(const Scene& scene, const ProjectorOptions& options) {
+  auto projector = CpuProjector::Create(scene, options);
+  EXPECT_TRUE(projector.ok()) << projector.error();
+  std::vector<ProjectedVertex> features;
+  EXPECT_TRUE((*projector)->Project(Pose3(), kCamera, &features).ok());
+  std::set<VertexId> ids;
+  for (const ProjectedVertex& f : features) ids.insert(f.id);
+  return ids;
+}
+
+TEST(CpuProjectorOcclusionTest, WallHidesTheBoxBehindItAndBoxesHideTheirBackFaces) {
+  Scene scene;
+  // Footprints in normalised image coordinates (X/Z, Y/Z): wall [-0.25, 0.25]^2; hidden box
+  // +-0.083; tile x in [-0.44, -0.31]; side box x in [0.36, 0.58], |y| <= 0.083.
+  const Range wall = AddGrid(&scene, {-1, -1, 4}, {2, 0, 0}, {0, 2, 0}, 10, 10);
+  const Box hidden_box = AddBox(&scene, {-0.5f, -0.5f, 6}, {0.5f, 0.5f, 7}, 4);
+  const Range tile = AddGrid(&scene, {-3.5f, -0.5f, 8}, {1, 0, 0}, {0, 1, 0}, 4, 4);
+  const Box side_box = AddBox(&scene, {2.5f, -0.5f, 6}, {3.5f, 0.5f, 7}, 5);
+
+  for (const double scale : {1.0, 0.5}) {
+    for (const int threads : {1, 3}) {
+      SCOPED_TRACE(testing::Message() << "scale " << scale << ", threads " << threads);
+      ProjectorOptions options;
+      options.occlusion = true;
+      options.occlusion_resolution_scale = scale;
+      options.num_threads = threads;
+      const std::set<VertexId> visible = ProjectIds(scene, options);
+      auto expect_all = [&](Range r, bool expected, const char* what) {
+        for (VertexId id = r.begin; id < r.end; ++id) {
+          EXPECT_EQ(visible.count(id) == 1, expected) << what << " vertex " << id;
+        }
+      };
+      expect_all(wall, true, "wall");
+      expect_all(tile, true, "tile");
+      for (Range r : {hidden_box.front, hidden_box.back, hidden_box.left, hidden_box.right,
+                      hidden_box.top, hidden_box.bottom}) {
+        expect_all(r, false, "box behind the wall");
+      }
+      // The side box, seen from its front-left: front and left faces visible; the back face
+      // (except its edge shared with the left face) hidden; the right face's inner vertices
+      // hidden. The top and bottom faces are seen edge-on and not asserted.
+      expect_all(side_box.front, true, "side box front");
+      expect_all(side_box.left, true, "side box left");
+      for (VertexId id = side_box.back.begin; id < side_box.back.end; ++id) {
+        if (scene.positions[id].x() > 2.51f) {
+          EXPECT_EQ(visible.count(id), 0u) << "back " << id;
+        }
+      }
+      for (VertexId id = side_box.right.begin; id < side_box.right.end; ++id) {
+        const Eigen::Vector3f& p = scene.positions[id];
+        if (p.z() > 6.1f && std::abs(p.y()) < 0.31f) {
+          EXPECT_EQ(visible.count(id), 0u) << "right " << id;
+        }
+      }
+    }
+  }
+  // Without occlusion everything in the frustum is returned.
+  const std::set<VertexId> all = ProjectIds(scene, ProjectorOptions{});
+  EXPECT_EQ(all.size(), scene.num_vertices());
+}
+
+TEST(CpuProjectorOcclusionTest, GrazingFloorAndCreasesDoNotHideThemselves) {
+  Scene scene;
+  // A floor 1 m below the camera running to 20 m, meeting a back wall (a concave crease), and
+  // a step on the floor (a convex edge) - no vertex is hidden.
+  AddGrid(&scene, {-4, 1, 1}, {8, 0, 0}, {0, 0, 19}, 40, 190);
+  AddGrid(&scene, {-4, -3, 20}, {8, 0, 0}, {0, 4, 0}, 40, 20);
+  const Box step = AddBox(&scene, {-1, 0.8f, 5}, {1, 1, 6}, 8);
+  ProjectorOptions options;
+  options.occlusion = true;
+  const std::set<VertexId> visible = ProjectIds(scene, options);
+  const std::set<VertexId> all = ProjectIds(scene, ProjectorOptions{});
+  // Every floor and wall vertex that is not behind the step is kept; the step's front and top
+  // faces too.
+  size_t missing = 0;
+  for (VertexId id : all) {
+    const Eigen::Vector3f& p = scene.positions[id];
+    // Under or behind the step (generous: a floor strip beside it is excluded too).
+    const bool behind_step = p.z() > 5.01f && std::abs(p.x() / p.z()) < 0.21f && p.y() > 0.75f;
+    const bool in_step = id >= step.front.begin;
+    if (!behind_step && !in_step && visible.count(id) == 0) ++missing;
+  }
+  EXPECT_EQ(missing, 0u);
+  for (Range r : {step.front, step.top}) {
+    for (VertexId id = r.begin; id < r.end; ++id) {
+      if (all.count(id)) {
+        EXPECT_EQ(visible.count(id), 1u) << "step vertex " << id;
+      }
+    }
+  }
+}
+
+TEST(CpuProjectorOcclusionTest, ClipsTrianglesCrossingTheNearPlane) {
+  Scene scene;
+  // A sloping ceiling y = -0.1 z - 0.2 (camera y points down) from z = -5, behind the
+  // camera, to z = 20: its two triangles cross the near plane and must be clipped. Grids at
+  // z = 8 above it are hidden (their rays meet it at z = 1.3 to 2.3), grids below are seen.
+  scene.positions = {{-50, 0.3f, -5}, {50, 0.3f, -5}, {50, -2.2f, 20}, {-50, -2.2f, 20}};
+  scene.triangles = {0, 1, 2, 0, 2, 3};
+  const Range behind = AddGrid(&scene, {-0.5f, -2.0f, 8}, {1, 0, 0}, {0, 0.5f, 0}, 4, 4);
+  const Range below = AddGrid(&scene, {-0.5f, -0.5f, 8}, {1, 0, 0}, {0, 0.5f, 0}, 4, 4);
+  ProjectorOptions options;
+  options.occlusion = true;
+  const std::set<VertexId> visible = ProjectIds(scene, options);
+  for (VertexId id = behind.begin; id < behind.end; ++id) EXPECT_EQ(visible.count(id), 0u) << id;
+  for (VertexId id = below.begin; id < below.end; ++id) EXPECT_EQ(visible.count(id), 1u) << id;
+}
+
+}  // namespace
+}  // namespace m2s
