@@ -101,8 +101,11 @@ void ExpectMatchesReference(const Scene& scene, const Pose3& pose, const Camera&
   for (VertexId id = 0; id < scene.num_vertices(); ++id) {
     const Reference r = ProjectReference(scene.positions[id], pose, camera);
     const bool present = next < features.size() && features[next].id == id;
-    if (r.cls == Reference::kVisible) EXPECT_TRUE(present) << "missing vertex " << id;
-    if (r.cls == Reference::kInvisible) EXPECT_FALSE(present) << "extra vertex " << id;
+    if (r.cls == Reference::kVisible) {
+      EXPECT_TRUE(present) << "missing vertex " << id;
+    } else if (r.cls == Reference::kInvisible) {
+      EXPECT_FALSE(present) << "extra vertex " << id;
+    }
     if (!present) continue;
     const ProjectedVertex& f = features[next++];
     max_error = std::max({max_error, std::abs(f.u - r.u), std::abs(f.v - r.v)});
