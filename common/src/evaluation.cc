@@ -1,0 +1,237 @@
+#include "m2s/common/evaluation.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+#include "m2s/common/alignment.h"
+
+namespace m2s {
+namespace {
+
+// evo.core.sync.matching_time_indices: for each short stamp, the nearest long stamp (first on
+// ties, as numpy argmin), kept if the difference is <= max_dt.
+std::vector<std::pair<size_t, size_t>> NearestMatches(const std::vector<double>& short_stamps,
+                                                      const std::vector<double>& long_stamps,
+                                                      double max_dt) {
+  std::vector<std::pair<size_t, size_t>> matches;
+  if (long_stamps.empty()) return matches;
+  // Stamps strictly increase, so the nearest is one of the two around the insertion point and
+  // taking the lower one on a tie equals argmin's first index.
+  for (size_t i = 0; i < short_stamps.size(); ++i) {
+    const auto upper = std::lower_bound(long_stamps.begin(), long_stamps.end(), short_stamps[i]);
+    size_t best = static_cast<size_t>(upper - long_stamps.begin());
+    if (best == long_stamps.size()) --best;
+    double best_diff = std::abs(long_stamps[best] - short_stamps[i]);
+    if (best > 0 && std::abs(long_stamps[best - 1] - short_stamps[i]) <= best_diff) {
+      --best;
+      best_diff = std::abs(long_stamps[best] - short_stamps[i]);
+    }
+    if (best_diff <= max_dt) matches.emplace_back(i, best);
+  }
+  return matches;
+}
+
+// TUM RGB-D associate.py: candidate pairs with |dt| < max_dt, greedily by smallest |dt|.
+std::vector<MatchedPair> GreedyMatches(const std::vector<double>& reference,
+                                       const std::vector<double>& estimate, double max_dt) {
+  struct Candidate {
+    double diff;
+    size_t reference, estimate;
+  };
+  std::vector<Candidate> candidates;
+  for (size_t i = 0; i < reference.size(); ++i) {
+    // Both sorted: only estimates within max_dt of this reference time.
+    auto it = std::lower_bound(estimate.begin(), estimate.end(), reference[i] - max_dt);
+    for (; it != estimate.end() && *it <= reference[i] + max_dt; ++it) {
+      const double diff = std::abs(*it - reference[i]);
+      if (diff < max_dt) {
+        candidates.push_back({diff, i, static_cast<size_t>(it - estimate.begin())});
+      }
+    }
+  }
+  std::stable_sort(candidates.begin(), candidates.end(),
+                   [](const Candidate& a, const Candidate& b) { return a.diff < b.diff; });
+  std::vector<bool> used_reference(reference.size(), false), used_estimate(estimate.size(), false);
+  std::vector<MatchedPair> matches;
+  for (const Candidate& c : candidates) {
+    if (used_reference[c.reference] || used_estimate[c.estimate]) continue;
+    used_reference[c.reference] = used_estimate[c.estimate] = true;
+    matches.push_back({c.reference, c.estimate});
+  }
+  std::sort(matches.begin(), matches.end(),
+            [](const MatchedPair& a, const MatchedPair& b) { return a.reference < b.reference; });
+  return matches;
+}
+
+std::vector<double> Stamps(const Trajectory& trajectory, double offset) {
+  std::vector<double> stamps;
+  stamps.reserve(trajectory.size());
+  for (const TimedPose& p : trajectory) stamps.push_back(p.timestamp + offset);
+  return stamps;
+}
+
+}  // namespace
+
+Expected<Alignment> ParseAlignment(const std::string& name) {
+  if (name == "none") return Alignment::kNone;
+  if (name == "se3") return Alignment::kSe3;
+  if (name == "sim3") return Alignment::kSim3;
+  return Expected<Alignment>::Error("unknown alignment '" + name + "' (none, se3 or sim3)");
+}
+
+const char* AlignmentName(Alignment alignment) {
+  switch (alignment) {
+    case Alignment::kNone:
+      return "none";
+    case Alignment::kSe3:
+      return "se3";
+    case Alignment::kSim3:
+      return "sim3";
+  }
+  return "unknown";
+}
+
+bool AssociationOptions::Check(std::string* why) const {
+  if (!std::isfinite(max_dt) || max_dt < 0.0) {
+    if (why) *why = "max_dt must be finite and non-negative";
+    return false;
+  }
+  if (!std::isfinite(estimate_offset_s)) {
+    if (why) *why = "estimate_offset_s must be finite";
+    return false;
+  }
+  return true;
+}
+
+bool EvaluationOptions::Check(std::string* why) const { return association.Check(why); }
+
+std::vector<MatchedPair> Associate(const Trajectory& reference, const Trajectory& estimate,
+                                   const AssociationOptions& options) {
+  const std::vector<double> ref = Stamps(reference, 0.0);
+  const std::vector<double> est = Stamps(estimate, options.estimate_offset_s);
+  if (options.method == AssociationMethod::kTumGreedy) {
+    return GreedyMatches(ref, est, options.max_dt);
+  }
+  std::vector<MatchedPair> matches;
+  const bool estimate_longer = est.size() > ref.size();
+  if (estimate_longer) {
+    for (const auto& [r, e] : NearestMatches(ref, est, options.max_dt)) matches.push_back({r, e});
+  } else {
+    for (const auto& [e, r] : NearestMatches(est, ref, options.max_dt)) matches.push_back({r, e});
+  }
+  return matches;
+}
+
+ErrorStats ComputeStats(const std::vector<double>& errors) {
+  ErrorStats stats;
+  stats.n = errors.size();
+  if (errors.empty()) return stats;
+  const double n = static_cast<double>(errors.size());
+  double sum = 0.0;
+  for (double e : errors) {
+    sum += e;
+    stats.sse += e * e;
+  }
+  stats.mean = sum / n;
+  stats.rmse = std::sqrt(stats.sse / n);
+  double var = 0.0;
+  for (double e : errors) var += (e - stats.mean) * (e - stats.mean);
+  stats.std = std::sqrt(var / n);
+  std::vector<double> sorted = errors;
+  std::sort(sorted.begin(), sorted.end());
+  stats.min = sorted.front();
+  stats.max = sorted.back();
+  const size_t mid = sorted.size() / 2;
+  stats.median = sorted.size() % 2 == 1 ? sorted[mid] : 0.5 * (sorted[mid - 1] + sorted[mid]);
+  return stats;
+}
+
+Expected<TrajectoryEvaluation> EvaluateTrajectory(const Trajectory& reference,
+                                                  const Trajectory& estimate,
+                                                  const EvaluationOptions& options) {
+  std::string why;
+  if (!options.Check(&why)) return Expected<TrajectoryEvaluation>::Error("evaluation: " + why);
+  TrajectoryEvaluation result;
+  result.matches = Associate(reference, estimate, options.association);
+  if (result.matches.empty()) {
+    return Expected<TrajectoryEvaluation>::Error(
+        "no matching timestamps between the reference (" + std::to_string(reference.size()) +
+        " poses) and the estimate (" + std::to_string(estimate.size()) + " poses) within max_dt " +
+        std::to_string(options.association.max_dt) + " s");
+  }
+  std::vector<Eigen::Vector3d> ref_positions, est_positions;
+  for (const MatchedPair& m : result.matches) {
+    ref_positions.push_back(reference[m.reference].world_from_camera.translation());
+    est_positions.push_back(estimate[m.estimate].world_from_camera.translation());
+  }
+  if (options.alignment != Alignment::kNone) {
+    const std::optional<Sim3> alignment =
+        AlignPoints(est_positions, ref_positions, options.alignment == Alignment::kSim3);
+    if (!alignment) {
+      return Expected<TrajectoryEvaluation>::Error(
+          std::string(AlignmentName(options.alignment)) +
+          " alignment failed: " + std::to_string(result.matches.size()) +
+          " matched poses (need at least 3, not all on one line)");
+    }
+    result.reference_from_estimate = *alignment;
+  }
+  result.scale = result.reference_from_estimate.scale();
+
+  std::vector<Pose3> ref_poses, aligned;
+  for (const MatchedPair& m : result.matches) {
+    ref_poses.push_back(reference[m.reference].world_from_camera);
+    aligned.push_back(
+        result.reference_from_estimate.TransformPose(estimate[m.estimate].world_from_camera));
+  }
+  for (size_t i = 0; i < aligned.size(); ++i) {
+    result.ate_errors.push_back((aligned[i].translation() - ref_poses[i].translation()).norm());
+  }
+  for (size_t i = 0; i + 1 < aligned.size(); ++i) {
+    const Pose3 ref_delta = ref_poses[i].Inverse() * ref_poses[i + 1];
+    const Pose3 est_delta = aligned[i].Inverse() * aligned[i + 1];
+    result.rpe_errors.push_back((ref_delta.Inverse() * est_delta).translation().norm());
+  }
+  result.ate = ComputeStats(result.ate_errors);
+  result.rpe = ComputeStats(result.rpe_errors);
+  return result;
+}
+
+Expected<Trajectory> InterpolateReferenceAt(const Trajectory& reference,
+                                            const Trajectory& estimate) {
+  if (reference.empty()) return Expected<Trajectory>::Error("the reference trajectory is empty");
+  std::vector<double> times;
+  for (const TimedPose& p : estimate) {
+    if (p.timestamp >= reference.start_time() && p.timestamp <= reference.end_time()) {
+      times.push_back(p.timestamp);
+    }
+  }
+  if (times.empty()) {
+    return Expected<Trajectory>::Error("no estimated timestamp lies inside the reference's range");
+  }
+  return reference.SampleAt(times);
+}
+
+Expected<ErrorStats> EvaluateMap(const std::vector<MapPoint>& map_points,
+                                 const std::vector<Eigen::Vector3f>& true_positions,
+                                 const Sim3& reference_from_estimate) {
+  std::vector<double> errors;
+  errors.reserve(map_points.size());
+  for (const MapPoint& point : map_points) {
+    if (point.id >= true_positions.size()) {
+      return Expected<ErrorStats>::Error("map point id " + std::to_string(point.id) +
+                                         " is not a scene vertex (the scene has " +
+                                         std::to_string(true_positions.size()) + ")");
+    }
+    if (!point.position.allFinite()) {
+      return Expected<ErrorStats>::Error("map point " + std::to_string(point.id) +
+                                         " has a non-finite position");
+    }
+    errors.push_back(
+        (reference_from_estimate * point.position - true_positions[point.id].cast<double>())
+            .norm());
+  }
+  return ComputeStats(errors);
+}
+
+}  // namespace m2s
