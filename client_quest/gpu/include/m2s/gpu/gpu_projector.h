@@ -1,0 +1,127 @@
+// GpuProjector: the Projector (m2s/common/projector.h) on a GLES 3.1 compute shader.
+//
+// Contract, identical in meaning to CpuProjector: every scene vertex with near <= Z <= far
+// (Z = camera-frame depth) whose (u, v) lies in [0, width) x [0, height) is returned as
+// (id, u, v, depth = Z); with ProjectorOptions::occlusion, vertices hidden behind nearer scene
+// triangles are removed by the same rule as the CPU projector (see "Occlusion" below).
+//
+// How it runs
+//  * Create() uploads the scene once: positions into a shader storage buffer (tightly packed
+//    floats, 12 bytes per vertex, shared with the occlusion pass as its vertex buffer) and,
+//    with occlusion, the triangle indices into an index buffer. Output buffers are sized for
+//    every vertex, so nothing is allocated per frame (a GL fence object per frame is the only
+//    driver object created).
+//  * Per frame only uniforms change. The compute shader transforms each vertex into camera
+//    coordinates, applies the depth-range and image tests, and compacts the visible ones: a
+//    workgroup counts its visible vertices in shared memory, reserves a range with one
+//    atomicAdd on a global counter, and writes (id, u, v, depth) records there. Only the
+//    counter and the used prefix of the output are read back (glMapBufferRange).
+//  * Numerics. The paper's chain is clip = P V M p, ndc = clip.xy / clip.w,
+//    u = (x_ndc/2 + 1/2) w, v = (-y_ndc/2 + 1/2) h with V = GlFromCv() * camera_from_world and
+//    P = Camera::GlProjection(); substituting P gives exactly u = fx X/Z + cx, v = fy Y/Z + cy
+//    and clip.w = Z. The compute shader evaluates that closed form in camera coordinates, so the
+//    near/far test is exact on Z (not on the non-linear NDC depth) and float32 rounding stays
+//    below 1e-3 px of the CPU's result. Camera coordinates are formed as
+//    R_cw ((p - c_hi) - c_lo), the camera centre c split into two floats, so the float error
+//    scales with the vertex's distance to the camera, not with its distance to the world origin.
+//    The occlusion pass does use the paper's matrices literally (gl_Position = P GlFromCv X_c).
+//
+// Occlusion: the scene's triangles are rasterised with the same camera into a
+// DEPTH_COMPONENT32F texture of round(scale * width) x round(scale * height) texels (row 0 =
+// image top; scale = occlusion_resolution_scale). The shader linearises the window depth d to
+// camera depth, Z_buf = near far / (far - d (far - near)), which is exact to ~1e-5 relative for
+// far/near <= 1e4, and keeps a vertex when Z <= Z_buf (1 + depth_bias_relative) + depth_bias_m
+// at the texel holding (u, v), or when no triangle covers it (d == 1). The rule, neighbourhood
+// and bias are the CPU projector's (common/cpu_projector.h); only rasterisation tie-breaks on
+// triangle edges differ, so the id sets agree to > 99.5% rather than exactly.
+//
+// Synchronous and asynchronous use. Project() dispatches and waits for the result; it is what
+// the paper measures ("dispatch to features in host memory") and what tools and tests use.
+// Render loops use Dispatch() / Collect(): two output slots, each with a fence, so frame N is
+// computed while frame N-1 is read back; Collect() waits (glClientWaitSync) only for the oldest
+// frame, which has normally finished, so the loop never stalls on the frame it just issued.
+// That is double buffering with fences: fences alone would still leave the CPU waiting on the
+// one buffer, a second buffer alone could not tell when it is safe to read.
+//
+// GL state: the projector needs its GlContext current on the calling thread (it binds it when
+// it is not). It restores the framebuffer, viewport, program, vertex array and depth/cull/
+// blend/scissor state it changes; it leaves indexed SSBO bindings 0..2 and texture unit 0 as
+// it used them. Not thread-safe: one thread at a time, the one owning the context.
+//
+//   auto projector = GpuProjector::Create(scene, options, /*context=*/nullptr);
+//   std::vector<ProjectedVertex> features;
+//   Status s = (*projector)->Project(world_from_camera, camera, &features);
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <string_view>
+#include <vector>
+
+#include "m2s/common/projector.h"
+#include "m2s/common/scene.h"
+#include "m2s/gpu/gl_context.h"
+#include "m2s/gpu/gl_util.h"
+
+namespace m2s {
+
+class GpuDepthPass;
+
+class GpuProjector : public Projector {
+ public:
+  static constexpr int kMaxFramesInFlight = 2;
+
+  // `context` may be null: the projector then creates and owns a headless context. Otherwise
+  // the context must outlive the projector. Errors: invalid options, an empty scene (the CPU
+  // projector accepts one; a GPU buffer cannot be empty), triangle indices out of range,
+  // non-finite positions, a scene too large for the device, no GLES 3.1.
+  static Expected<std::unique_ptr<GpuProjector>> Create(const Scene& scene,
+                                                        const ProjectorOptions& options,
+                                                        GlContext* context);
+  ~GpuProjector() override;
+
+  // Synchronous: Dispatch() + Collect() of this very frame. Fails when frames are in flight.
+  Status Project(const Pose3& world_from_camera, const Camera& camera,
+                 std::vector<ProjectedVertex>* out) override;
+  std::string_view name() const override { return "gpu"; }
+
+  // Asynchronous: issues the projection of one frame and returns without waiting. `tag` comes
+  // back from Collect() (e.g. the frame number). Fails when kMaxFramesInFlight frames are
+  // already in flight: collect first.
+  Status Dispatch(const Pose3& world_from_camera, const Camera& camera, int64_t tag = 0);
+  // Reads back the oldest frame in flight (waits for its fence). Fails when none is in flight.
+  Status Collect(std::vector<ProjectedVertex>* out, int64_t* tag = nullptr);
+  int frames_in_flight() const { return in_flight_; }
+
+  GlContext& context() { return *context_; }
+  size_t num_vertices() const { return num_vertices_; }
+
+ private:
+  struct Slot {
+    GlBuffer counter;       // one uint
+    GlBuffer features;      // num_vertices * 16 bytes
+    void* fence = nullptr;  // GLsync
+    int64_t tag = 0;
+  };
+
+  GpuProjector() = default;
+  Status Init(const Scene& scene, const ProjectorOptions& options);
+
+  std::unique_ptr<GlContext> owned_context_;
+  GlContext* context_ = nullptr;
+  ProjectorOptions options_;
+  size_t num_vertices_ = 0;
+  GlBuffer positions_;
+  GlProgram program_;
+  std::unique_ptr<GpuDepthPass> depth_pass_;  // null without occlusion
+  std::array<Slot, kMaxFramesInFlight> slots_;
+  int next_slot_ = 0;  // slot the next Dispatch() writes
+  int in_flight_ = 0;  // frames dispatched and not collected, oldest at next_slot_ - in_flight_
+  // Uniform locations.
+  GLint loc_rotation_ = -1, loc_center_hi_ = -1, loc_center_lo_ = -1, loc_intrinsics_ = -1,
+        loc_range_ = -1, loc_num_vertices_ = -1, loc_occlusion_ = -1, loc_depth_size_ = -1,
+        loc_bias_ = -1, loc_depth_ = -1;
+};
+
+}  // namespace m2s

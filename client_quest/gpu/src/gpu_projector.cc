@@ -1,0 +1,303 @@
+#include "m2s/gpu/gpu_projector.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+#include "camera_uniforms.h"
+#include "gpu_depth_pass.h"
+
+namespace m2s {
+namespace {
+
+static_assert(sizeof(ProjectedVertex) == 16, "ProjectedVertex must match the shader's Feature");
+
+constexpr GLuint kLocalSize = 256;
+constexpr GLuint kMaxGroupsX = 65535;  // GLES 3.1 guaranteed minimum
+// Collect() gives up when the GPU has not finished a frame after this long.
+constexpr GLuint64 kFenceTimeoutNs = 60ull * 1000 * 1000 * 1000;
+
+// Binding points: 0 positions, 1 counter, 2 features; texture unit 0 = occlusion depth.
+constexpr const char* kComputeShader = R"(
+layout(local_size_x = 256) in;
+layout(std430, binding = 0) readonly buffer Positions { float positions[]; };
+layout(std430, binding = 1) buffer Counter { uint count; };
+struct Feature { uint id; float u; float v; float depth; };
+layout(std430, binding = 2) writeonly buffer Features { Feature features[]; };
+
+uniform mat3 u_rotation;    // camera_from_world
+uniform vec3 u_center_hi;   // camera centre in world = hi + lo
+uniform vec3 u_center_lo;
+uniform vec4 u_intrinsics;  // fx fy cx cy
+uniform vec4 u_range;       // width height near far
+uniform uint u_num_vertices;
+#ifdef M2S_OCCLUSION
+uniform highp sampler2D u_depth;  // window depth, row 0 = image top
+uniform vec2 u_depth_size;        // depth buffer width, height in texels
+uniform vec2 u_bias;              // relative, absolute (metres)
+#endif
+
+shared uint s_count;
+shared uint s_base;
+
+void main() {
+  uint local_index = gl_LocalInvocationIndex;
+  if (local_index == 0u) s_count = 0u;
+  barrier();
+  uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+  uint id = group * 256u + local_index;
+  bool visible = false;
+  float u = 0.0, v = 0.0, z = 0.0;
+  if (id < u_num_vertices) {
+    vec3 p = vec3(positions[3u * id], positions[3u * id + 1u], positions[3u * id + 2u]);
+    vec3 c = u_rotation * ((p - u_center_hi) - u_center_lo);
+    z = c.z;
+    if (z >= u_range.z && z <= u_range.w) {
+      u = u_intrinsics.x * c.x / z + u_intrinsics.z;
+      v = u_intrinsics.y * c.y / z + u_intrinsics.w;
+      visible = u >= 0.0 && v >= 0.0 && u < u_range.x && v < u_range.y;
+    }
+#ifdef M2S_OCCLUSION
+    if (visible) {
+      // The CPU projector's rule: M = max of the linear depth over the 3x3 texels around the
+      // vertex's texel (clipped to the buffer; uncovered texels are +inf, i.e. d == 1).
+      ivec2 size = ivec2(u_depth_size);
+      ivec2 texel = min(ivec2(floor(vec2(u, v) * u_depth_size / u_range.xy)), size - 1);
+      ivec2 lo = max(texel - 1, ivec2(0));
+      ivec2 hi = min(texel + 1, size - 1);
+      float d_max = 0.0;
+      for (int y = lo.y; y <= hi.y; ++y) {
+        for (int x = lo.x; x <= hi.x; ++x) d_max = max(d_max, texelFetch(u_depth, ivec2(x, y), 0).r);
+      }
+      if (d_max < 1.0) {
+        // Window depth -> camera Z (monotonic, so the max commutes with it).
+        float near = u_range.z, far = u_range.w;
+        float z_buffer = near * far / (far - d_max * (far - near));
+        visible = z <= z_buffer * (1.0 + u_bias.x) + u_bias.y;
+      }
+    }
+#endif
+  }
+  uint slot = 0u;
+  if (visible) slot = atomicAdd(s_count, 1u);
+  barrier();
+  if (local_index == 0u) s_base = atomicAdd(count, s_count);
+  barrier();
+  if (visible) features[s_base + slot] = Feature(id, u, v, z);
+}
+)";
+
+}  // namespace
+
+Expected<std::unique_ptr<GpuProjector>> GpuProjector::Create(const Scene& scene,
+                                                             const ProjectorOptions& options,
+                                                             GlContext* context) {
+  if (std::string why; !options.Check(&why)) return Status::Error("GpuProjector: " + why);
+  if (scene.positions.empty()) return Status::Error("GpuProjector: the scene has no vertices");
+  if (scene.triangles.size() % 3 != 0) {
+    return Status::Error("GpuProjector: the triangle index count is not a multiple of 3");
+  }
+  const size_t n = scene.positions.size();
+  for (uint32_t index : scene.triangles) {
+    if (index >= n) {
+      return Status::Error("GpuProjector: triangle index " + std::to_string(index) +
+                           " out of range (" + std::to_string(n) + " vertices)");
+    }
+  }
+  for (size_t i = 0; i < n; ++i) {
+    if (!scene.positions[i].allFinite()) {
+      return Status::Error("GpuProjector: scene vertex " + std::to_string(i) +
+                           " has a non-finite position");
+    }
+  }
+  std::unique_ptr<GpuProjector> projector(new GpuProjector());
+  if (context == nullptr) {
+    Expected<std::unique_ptr<GlContext>> own = GlContext::CreateHeadless();
+    if (!own) return Status::Error("GpuProjector: " + own.error());
+    projector->owned_context_ = std::move(*own);
+    context = projector->owned_context_.get();
+  }
+  projector->context_ = context;
+  if (Status s = context->MakeCurrent(); !s) return Status::Error("GpuProjector: " + s.message());
+  if (Status s = projector->Init(scene, options); !s) {
+    return Status::Error("GpuProjector: " + s.message());
+  }
+  return projector;
+}
+
+Status GpuProjector::Init(const Scene& scene, const ProjectorOptions& options) {
+  options_ = options;
+  num_vertices_ = scene.positions.size();
+  const GLint64 features_bytes = static_cast<GLint64>(num_vertices_) * 16;
+  GLint64 max_block = 0;
+  glGetInteger64v(GL_MAX_SHADER_STORAGE_BLOCK_SIZE, &max_block);
+  if (features_bytes > max_block || num_vertices_ > std::numeric_limits<uint32_t>::max() / 3) {
+    return Status::Error("scene of " + std::to_string(num_vertices_) +
+                         " vertices exceeds GL_MAX_SHADER_STORAGE_BLOCK_SIZE (" +
+                         std::to_string(max_block) + " bytes)");
+  }
+  const std::string header = std::string("#version 310 es\nprecision highp float;\n") +
+                             (options.occlusion ? "#define M2S_OCCLUSION 1\n" : "");
+  Expected<GlProgram> program = CompileProgram({{GL_COMPUTE_SHADER, header + kComputeShader}});
+  if (!program) return program.status();
+  program_ = std::move(*program);
+  const GLuint id = program_.id();
+  loc_rotation_ = glGetUniformLocation(id, "u_rotation");
+  loc_center_hi_ = glGetUniformLocation(id, "u_center_hi");
+  loc_center_lo_ = glGetUniformLocation(id, "u_center_lo");
+  loc_intrinsics_ = glGetUniformLocation(id, "u_intrinsics");
+  loc_range_ = glGetUniformLocation(id, "u_range");
+  loc_num_vertices_ = glGetUniformLocation(id, "u_num_vertices");
+  loc_depth_ = glGetUniformLocation(id, "u_depth");
+  loc_depth_size_ = glGetUniformLocation(id, "u_depth_size");
+  loc_bias_ = glGetUniformLocation(id, "u_bias");
+
+  static_assert(sizeof(Eigen::Vector3f) == 3 * sizeof(float), "positions must be packed");
+  positions_ = MakeGlBuffer();
+  glBindBuffer(GL_SHADER_STORAGE_BUFFER, positions_.id());
+  glBufferData(GL_SHADER_STORAGE_BUFFER, static_cast<GLsizeiptr>(num_vertices_ * 3 * sizeof(float)),
+               scene.positions.data(), GL_STATIC_DRAW);
+  for (Slot& slot : slots_) {
+    slot.counter = MakeGlBuffer();
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, slot.counter.id());
+    glBufferData(GL_SHADER_STORAGE_BUFFER, sizeof(GLuint), nullptr, GL_DYNAMIC_READ);
+    slot.features = MakeGlBuffer();
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, slot.features.id());
+    glBufferData(GL_SHADER_STORAGE_BUFFER, static_cast<GLsizeiptr>(features_bytes), nullptr,
+                 GL_DYNAMIC_READ);
+  }
+  glBindBuffer(GL_SHADER_STORAGE_BUFFER, 0);
+  if (Status s = CheckGlError("uploading the scene"); !s) return s;
+  if (options.occlusion) {
+    Expected<std::unique_ptr<GpuDepthPass>> pass =
+        GpuDepthPass::Create(positions_.id(), scene.triangles);
+    if (!pass) return pass.status();
+    depth_pass_ = std::move(*pass);
+  }
+  return Status::Ok();
+}
+
+GpuProjector::~GpuProjector() {
+  if (context_ == nullptr || !context_->MakeCurrent()) return;
+  for (Slot& slot : slots_) {
+    if (slot.fence != nullptr) glDeleteSync(static_cast<GLsync>(slot.fence));
+  }
+  // GL objects are released by their handles while the context is still current.
+}
+
+Status GpuProjector::Project(const Pose3& world_from_camera, const Camera& camera,
+                             std::vector<ProjectedVertex>* out) {
+  if (in_flight_ != 0) {
+    return Status::Error("GpuProjector::Project: asynchronous frames in flight; Collect() them");
+  }
+  if (Status s = Dispatch(world_from_camera, camera, 0); !s) return s;
+  return Collect(out, nullptr);
+}
+
+Status GpuProjector::Dispatch(const Pose3& world_from_camera, const Camera& camera, int64_t tag) {
+  std::string why;
+  if (!camera.Check(&why)) return Status::Error("GpuProjector: " + why);
+  if (!world_from_camera.AllFinite()) return Status::Error("GpuProjector: pose is not finite");
+  if (in_flight_ >= kMaxFramesInFlight) {
+    return Status::Error("GpuProjector::Dispatch: " + std::to_string(kMaxFramesInFlight) +
+                         " frames already in flight; Collect() first");
+  }
+  if (Status s = context_->MakeCurrent(); !s) return s;
+  const internal::CameraUniforms uniforms = internal::MakeCameraUniforms(world_from_camera, camera);
+  if (depth_pass_) {
+    const int width = OcclusionBufferSize(camera.width, options_.occlusion_resolution_scale);
+    const int height = OcclusionBufferSize(camera.height, options_.occlusion_resolution_scale);
+    if (Status s = depth_pass_->Render(uniforms, width, height); !s) return s;
+  }
+  Slot& slot = slots_[next_slot_];
+  const GLuint zero = 0;
+  glBindBuffer(GL_SHADER_STORAGE_BUFFER, slot.counter.id());
+  glBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, sizeof(zero), &zero);
+  glBindBuffer(GL_SHADER_STORAGE_BUFFER, 0);
+
+  GLint previous_program = 0;
+  glGetIntegerv(GL_CURRENT_PROGRAM, &previous_program);
+  glUseProgram(program_.id());
+  glUniformMatrix3fv(loc_rotation_, 1, GL_FALSE, uniforms.rotation.data());
+  glUniform3fv(loc_center_hi_, 1, uniforms.center_hi.data());
+  glUniform3fv(loc_center_lo_, 1, uniforms.center_lo.data());
+  glUniform4fv(loc_intrinsics_, 1, uniforms.intrinsics.data());
+  glUniform4fv(loc_range_, 1, uniforms.range.data());
+  glUniform1ui(loc_num_vertices_, static_cast<GLuint>(num_vertices_));
+  if (depth_pass_) {
+    glActiveTexture(GL_TEXTURE0);
+    glBindTexture(GL_TEXTURE_2D, depth_pass_->texture());
+    glUniform1i(loc_depth_, 0);
+    glUniform2f(loc_depth_size_, static_cast<float>(depth_pass_->width()),
+                static_cast<float>(depth_pass_->height()));
+    glUniform2f(loc_bias_, static_cast<float>(options_.occlusion_depth_bias_relative),
+                static_cast<float>(options_.occlusion_depth_bias_m));
+  }
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, positions_.id());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, slot.counter.id());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, slot.features.id());
+  const GLuint groups = static_cast<GLuint>((num_vertices_ + kLocalSize - 1) / kLocalSize);
+  const GLuint groups_x = std::min(groups, kMaxGroupsX);
+  const GLuint groups_y = (groups + groups_x - 1) / groups_x;
+  glDispatchCompute(groups_x, groups_y, 1);
+  // Make the shader's buffer writes visible to glMapBufferRange.
+  glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
+  glUseProgram(static_cast<GLuint>(previous_program));
+  slot.fence = glFenceSync(GL_SYNC_GPU_COMMANDS_COMPLETE, 0);
+  glFlush();  // start the work now; Collect() may come a frame later
+  slot.tag = tag;
+  if (Status s = CheckGlError("GpuProjector::Dispatch"); !s) {
+    glDeleteSync(static_cast<GLsync>(slot.fence));
+    slot.fence = nullptr;
+    return s;
+  }
+  next_slot_ = (next_slot_ + 1) % kMaxFramesInFlight;
+  ++in_flight_;
+  return Status::Ok();
+}
+
+Status GpuProjector::Collect(std::vector<ProjectedVertex>* out, int64_t* tag) {
+  if (in_flight_ == 0) return Status::Error("GpuProjector::Collect: no frame in flight");
+  if (Status s = context_->MakeCurrent(); !s) return s;
+  Slot& slot = slots_[(next_slot_ - in_flight_ + kMaxFramesInFlight) % kMaxFramesInFlight];
+  --in_flight_;
+  GLsync fence = static_cast<GLsync>(slot.fence);
+  slot.fence = nullptr;
+  const GLenum wait = glClientWaitSync(fence, GL_SYNC_FLUSH_COMMANDS_BIT, kFenceTimeoutNs);
+  glDeleteSync(fence);
+  if (wait == GL_TIMEOUT_EXPIRED || wait == GL_WAIT_FAILED) {
+    return Status::Error(wait == GL_WAIT_FAILED ? "GpuProjector::Collect: glClientWaitSync failed"
+                                                : "GpuProjector::Collect: GPU timed out");
+  }
+  if (tag != nullptr) *tag = slot.tag;
+
+  glBindBuffer(GL_SHADER_STORAGE_BUFFER, slot.counter.id());
+  const void* counter =
+      glMapBufferRange(GL_SHADER_STORAGE_BUFFER, 0, sizeof(GLuint), GL_MAP_READ_BIT);
+  if (counter == nullptr) {
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, 0);
+    return Status::Error("GpuProjector::Collect: mapping the counter failed");
+  }
+  GLuint count = 0;
+  std::memcpy(&count, counter, sizeof(count));
+  glUnmapBuffer(GL_SHADER_STORAGE_BUFFER);
+  count = static_cast<GLuint>(std::min<size_t>(count, num_vertices_));
+  out->resize(count);  // capacity reused from frame to frame
+  if (count > 0) {
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, slot.features.id());
+    const void* features = glMapBufferRange(GL_SHADER_STORAGE_BUFFER, 0,
+                                            static_cast<GLsizeiptr>(count) * 16, GL_MAP_READ_BIT);
+    if (features == nullptr) {
+      glBindBuffer(GL_SHADER_STORAGE_BUFFER, 0);
+      out->clear();
+      return Status::Error("GpuProjector::Collect: mapping the features failed");
+    }
+    std::memcpy(out->data(), features, static_cast<size_t>(count) * sizeof(ProjectedVertex));
+    glUnmapBuffer(GL_SHADER_STORAGE_BUFFER);
+  }
+  glBindBuffer(GL_SHADER_STORAGE_BUFFER, 0);
+  return CheckGlError("GpuProjector::Collect");
+}
+
+}  // namespace m2s
