@@ -1,0 +1,179 @@
+// GPU occlusion: a scene whose hidden set is known exactly, and agreement with the CPU rule.
+#include <gtest/gtest.h>
+
+#include <set>
+
+#include "gpu_test_util.h"
+#include "m2s/common/cpu_projector.h"
+#include "m2s/gpu/gpu_projector.h"
+
+namespace m2s {
+namespace {
+
+using testing::LookAt;
+using testing::SharedContext;
+
+// A box x, y in [-1, 1], z in [5, 7] with 4 x 4 vertices per face (the faces share their
+// edge vertices), and in front of it a wall at z = 3 covering x <= 0. Seen from the origin
+// along +z, the visible box vertices are exactly the front face's (z = 5) with x > 0: the
+// wall hides the front vertices with x < 0, the front face hides everything behind it.
+struct WallAndBox {
+  Scene scene;
+  std::set<VertexId> visible_with_occlusion;
+  std::set<VertexId> visible_without_occlusion;
+};
+
+WallAndBox MakeWallAndBox() {
+  WallAndBox w;
+  Scene& s = w.scene;
+  const float coords[4] = {-1.f, -1.f / 3.f, 1.f / 3.f, 1.f};
+  const float depths[4] = {5.f, 5.f + 2.f / 3.f, 5.f + 4.f / 3.f, 7.f};
+  // Vertex grid over the box surface: index by (ix, iy, iz) when on the surface.
+  int index[4][4][4];
+  for (int iz = 0; iz < 4; ++iz)
+    for (int iy = 0; iy < 4; ++iy)
+      for (int ix = 0; ix < 4; ++ix) {
+        const bool surface = ix == 0 || ix == 3 || iy == 0 || iy == 3 || iz == 0 || iz == 3;
+        index[ix][iy][iz] = -1;
+        if (!surface) continue;
+        const VertexId id = static_cast<VertexId>(s.positions.size());
+        index[ix][iy][iz] = static_cast<int>(id);
+        s.positions.emplace_back(coords[ix], coords[iy], depths[iz]);
+        w.visible_without_occlusion.insert(id);
+        if (iz == 0 && coords[ix] > 0) w.visible_with_occlusion.insert(id);
+      }
+  auto quad = [&s](int a, int b, int c, int d) {
+    s.triangles.insert(s.triangles.end(), {uint32_t(a), uint32_t(b), uint32_t(c), uint32_t(a),
+                                           uint32_t(c), uint32_t(d)});
+  };
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) {
+      for (int k : {0, 3}) {
+        quad(index[i][j][k], index[i + 1][j][k], index[i + 1][j + 1][k], index[i][j + 1][k]);
+        quad(index[k][i][j], index[k][i + 1][j], index[k][i + 1][j + 1], index[k][i][j + 1]);
+        quad(index[i][k][j], index[i + 1][k][j], index[i + 1][k][j + 1], index[i][k][j + 1]);
+      }
+    }
+  // The wall: its corners lie outside the 90-degree view, so it contributes no vertices.
+  const uint32_t base = static_cast<uint32_t>(s.positions.size());
+  s.positions.emplace_back(-4.f, -4.f, 3.f);
+  s.positions.emplace_back(0.f, -4.f, 3.f);
+  s.positions.emplace_back(0.f, 4.f, 3.f);
+  s.positions.emplace_back(-4.f, 4.f, 3.f);
+  quad(base, base + 1, base + 2, base + 3);
+  return w;
+}
+
+std::set<VertexId> Ids(const std::vector<ProjectedVertex>& features) {
+  std::set<VertexId> ids;
+  for (const auto& f : features) ids.insert(f.id);
+  return ids;
+}
+
+class GpuOcclusionTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    M2S_SKIP_WITHOUT_EGL();
+    context_ = SharedContext();
+    ASSERT_NE(context_, nullptr) << GlContext::CreateHeadless().error();
+  }
+  GlContext* context_ = nullptr;
+};
+
+TEST_F(GpuOcclusionTest, WallHidesExactlyTheKnownSet) {
+  const WallAndBox w = MakeWallAndBox();
+  const Camera camera = Camera::FromHorizontalFov(640, 480, 90.0, 0.05, 50.0);
+  std::vector<ProjectedVertex> out;
+  for (double scale : {1.0, 0.5, 0.25}) {
+    SCOPED_TRACE("scale " + std::to_string(scale));
+    ProjectorOptions options;
+    options.occlusion = true;
+    options.occlusion_resolution_scale = scale;
+    auto gpu = GpuProjector::Create(w.scene, options, context_);
+    ASSERT_TRUE(gpu) << gpu.error();
+    ASSERT_TRUE((*gpu)->Project(Pose3::Identity(), camera, &out));
+    EXPECT_EQ(Ids(out), w.visible_with_occlusion);
+    auto cpu = CpuProjector::Create(w.scene, options);
+    ASSERT_TRUE(cpu) << cpu.error();
+    ASSERT_TRUE((*cpu)->Project(Pose3::Identity(), camera, &out));
+    EXPECT_EQ(Ids(out), w.visible_with_occlusion) << "CPU projector";
+  }
+  auto plain = GpuProjector::Create(w.scene, ProjectorOptions{}, context_);
+  ASSERT_TRUE(plain) << plain.error();
+  ASSERT_TRUE((*plain)->Project(Pose3::Identity(), camera, &out));
+  EXPECT_EQ(Ids(out), w.visible_without_occlusion);
+}
+
+TEST_F(GpuOcclusionTest, DepthOutsideTheWallIsUntouchedAndAsyncMatches) {
+  // Looking at the box from +x, beside the wall: the wall hides nothing of the x = 1 face.
+  const WallAndBox w = MakeWallAndBox();
+  const Camera camera = Camera::FromHorizontalFov(320, 240, 60.0, 0.05, 50.0);
+  ProjectorOptions options;
+  options.occlusion = true;
+  auto gpu = GpuProjector::Create(w.scene, options, context_);
+  ASSERT_TRUE(gpu) << gpu.error();
+  const Pose3 pose = LookAt({6, 0, 6}, {0, 0, 6}, -Eigen::Vector3d::UnitY());
+  std::vector<ProjectedVertex> sync, async;
+  ASSERT_TRUE((*gpu)->Project(pose, camera, &sync));
+  // From +x at mid-depth the x = 1 face is seen head-on: its 16 vertices are visible.
+  std::set<VertexId> expected;
+  for (VertexId id = 0; id < w.scene.positions.size(); ++id) {
+    if (w.scene.positions[id].x() == 1.f) expected.insert(id);
+  }
+  std::set<VertexId> box_ids;  // the wall's far corners (ids >= 56) are visible too
+  for (VertexId id : Ids(sync)) {
+    if (id < 56) box_ids.insert(id);
+  }
+  EXPECT_EQ(box_ids, expected);
+  auto cpu = CpuProjector::Create(w.scene, options);
+  ASSERT_TRUE(cpu) << cpu.error();
+  std::vector<ProjectedVertex> cpu_out;
+  ASSERT_TRUE((*cpu)->Project(pose, camera, &cpu_out));
+  EXPECT_EQ(Ids(sync), Ids(cpu_out));
+  ASSERT_TRUE((*gpu)->Dispatch(pose, camera, 7));
+  int64_t tag = 0;
+  ASSERT_TRUE((*gpu)->Collect(&async, &tag));
+  EXPECT_EQ(tag, 7);
+  EXPECT_EQ(Ids(async), Ids(sync));
+}
+
+TEST_F(GpuOcclusionTest, AgreesWithCpuOnDefaultScene) {
+  const Scene scene = MakeDefaultScene();
+  ProjectorOptions options;
+  options.occlusion = true;
+  auto gpu = GpuProjector::Create(scene, options, context_);
+  ASSERT_TRUE(gpu) << gpu.error();
+  auto cpu = CpuProjector::Create(scene, options);
+  ASSERT_TRUE(cpu) << cpu.error();
+  auto plain = CpuProjector::Create(scene, ProjectorOptions{});
+  ASSERT_TRUE(plain) << plain.error();
+  const Camera camera = Camera::FromHorizontalFov(640, 480, 90.0);
+  size_t total_union = 0, total_common = 0, total_hidden = 0;
+  std::vector<ProjectedVertex> gpu_out, cpu_out, plain_out;
+  for (int k = 0; k < 8; ++k) {
+    const double a = k * M_PI / 4;
+    const Eigen::Vector3d eye(0.5 * std::cos(a), 0.4 * std::sin(a), 1.5);
+    const Pose3 pose =
+        LookAt(eye, eye + Eigen::Vector3d(std::cos(a + 0.3), std::sin(a + 0.3), -0.4));
+    ASSERT_TRUE((*gpu)->Project(pose, camera, &gpu_out));
+    ASSERT_TRUE((*cpu)->Project(pose, camera, &cpu_out));
+    ASSERT_TRUE((*plain)->Project(pose, camera, &plain_out));
+    const std::set<VertexId> g = Ids(gpu_out), c = Ids(cpu_out);
+    std::set<VertexId> all = g;
+    all.insert(c.begin(), c.end());
+    size_t common = 0;
+    for (VertexId id : g) common += c.count(id);
+    total_union += all.size();
+    total_common += common;
+    total_hidden += plain_out.size() - c.size();
+  }
+  ASSERT_GT(total_union, 0u);
+  EXPECT_GT(total_hidden, total_union / 20) << "the default scene should have occluded vertices";
+  const double agreement = static_cast<double>(total_common) / static_cast<double>(total_union);
+  std::cout << "GPU/CPU occlusion agreement on the default scene: " << 100.0 * agreement << "% of "
+            << total_union << " ids, " << total_hidden << " hidden by the CPU rule\n";
+  EXPECT_GT(agreement, 0.995);
+}
+
+}  // namespace
+}  // namespace m2s
