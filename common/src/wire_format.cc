@@ -159,10 +159,11 @@ int UvShiftFor(int width, int height) {
   return shift;
 }
 
-uint16_t QuantizeCoordinate(float value, int uv_shift) {
+uint16_t QuantizeCoordinate(float value, int size, int uv_shift) {
   const double scaled = std::ldexp(static_cast<double>(value), uv_shift);
   if (!(scaled > 0.0)) return 0;  // also NaN
-  return static_cast<uint16_t>(std::min(std::llround(scaled), static_cast<long long>(65535)));
+  const long long last = std::min((static_cast<long long>(size) << uv_shift) - 1, 65535LL);
+  return static_cast<uint16_t>(std::clamp(std::llround(scaled), 0LL, std::max(last, 0LL)));
 }
 
 float DequantizeCoordinate(uint16_t code, int uv_shift) {
@@ -242,8 +243,8 @@ feature_frame_t ToMessage(const FeatureFrame& frame) {
   for (size_t i = 0; i < n; ++i) {
     const VertexFeature& f = frame.features[i];
     m.ids[i] = static_cast<int32_t>(f.id);
-    m.u_q[i] = static_cast<int16_t>(QuantizeCoordinate(f.uv.x(), shift));
-    m.v_q[i] = static_cast<int16_t>(QuantizeCoordinate(f.uv.y(), shift));
+    m.u_q[i] = static_cast<int16_t>(QuantizeCoordinate(f.uv.x(), frame.camera.width, shift));
+    m.v_q[i] = static_cast<int16_t>(QuantizeCoordinate(f.uv.y(), frame.camera.height, shift));
   }
   m.has_ground_truth = frame.ground_truth_world_from_camera.has_value();
   m.ground_truth_world_from_camera =

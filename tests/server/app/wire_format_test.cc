@@ -83,9 +83,15 @@ TEST(WireFormatTest, EightBytesPerFeature) {
 }
 
 TEST(WireFormatTest, EdgeCoordinatesClampToTheLastCode) {
-  EXPECT_EQ(QuantizeCoordinate(1023.999f, 6), 65535);
-  EXPECT_EQ(QuantizeCoordinate(-0.3f, 6), 0);
-  EXPECT_EQ(QuantizeCoordinate(std::nanf(""), 6), 0);
+  EXPECT_EQ(QuantizeCoordinate(1023.999f, 1024, 6), 65535);
+  EXPECT_EQ(QuantizeCoordinate(639.999f, 640, 6), 640 * 64 - 1);
+  EXPECT_EQ(QuantizeCoordinate(-0.3f, 640, 6), 0);
+  EXPECT_EQ(QuantizeCoordinate(std::nanf(""), 640, 6), 0);
+  // A feature at the very edge still decodes inside the image.
+  FeatureFrame edge = RandomFrame(640, 480, 1, 9);
+  edge.features[0].uv = {639.9999f, 479.9999f};
+  const auto bytes = EncodeFeatureFrame(edge);
+  EXPECT_TRUE(DecodeFeatureFrame(bytes.data(), bytes.size(), {}).ok());
   EXPECT_FLOAT_EQ(DequantizeCoordinate(65535, 6), 1023.984375f);
 }
 

@@ -5,8 +5,8 @@
 // fixed point with `uv_shift` fractional bits (proto/feature_frame_t.lcm). UvShiftFor() picks
 // the finest resolution the image allows: 1/64 px up to 1024 px, 1/32 px up to 2048 px, ...
 // Round-trip error is at most 2^-(uv_shift+1) px, except that a coordinate within
-// 2^-(uv_shift+1) px of the right/bottom edge of an image whose size times 2^uv_shift is
-// exactly 65536 is clamped to the last code (error < 2^-uv_shift px).
+// 2^-(uv_shift+1) px of the right/bottom image edge is clamped to the last code inside the
+// image (error < 2^-uv_shift px), so every encoded feature decodes inside the image.
 //
 // Decoding never trusts the bytes: sizes and counts are checked before anything is allocated,
 // and every failure is reported with a DropReason (the server's drop counters are keyed by
@@ -130,8 +130,9 @@ struct FrameLimits {
 // The largest shift (<= 8) with max(width, height) * 2^shift <= 65536; -1 when the image is
 // larger than 65536 px or not positive.
 int UvShiftFor(int width, int height);
-// Fixed-point code of a coordinate in [0, size) (clamped to the representable range).
-uint16_t QuantizeCoordinate(float value, int uv_shift);
+// Fixed-point code of a coordinate in [0, size) pixels, clamped to the codes inside the image
+// (a value within half a quantum of `size` gets the last code, so it still decodes inside).
+uint16_t QuantizeCoordinate(float value, int size, int uv_shift);
 float DequantizeCoordinate(uint16_t code, int uv_shift);
 
 // Value <-> message conversions.

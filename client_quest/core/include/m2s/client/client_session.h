@@ -1,0 +1,137 @@
+// ClientSession: one client's conversation with a SLAM server over any Transport.
+//
+// Start() opens the transport and says HELLO (with the camera and, for reproducible runs, the
+// FLAG_DETERMINISTIC flag); Send() stamps and publishes encoded frames; pose estimates are
+// matched to the frames by sequence number (latency = pose received - frame sent, wall
+// clock); map deltas keep a MapReplica current, a revision gap triggers a rate-limited
+// RESYNC_REQUEST. A change of server_instance in a message for our session (the server
+// restarted) or SESSION_ENDED from the server starts a new session (new id, HELLO, empty
+// replica) at the next Send(). Undecodable or invalid messages on any channel are counted and
+// ignored.
+//
+// Thread-safety: Send(), the Wait*() calls and the accessors may be called from any thread;
+// messages arrive on the transport's thread. No lock is held while publishing.
+//
+//   LcmTransport transport(url);
+//   ClientSession session(&transport, {.camera = camera});
+//   if (Status s = session.Start(); !s) return s;
+//   auto seq = session.Send(frame);
+//   session.WaitForPose(*seq, 1.0);
+//   session.End();
+#pragma once
+
+#include <condition_variable>
+#include <cstdint>
+#include <mutex>
+#include <optional>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "m2s/client/map_replica.h"
+#include "m2s/client/transport.h"
+#include "m2s/common/status.h"
+#include "m2s/common/wire_format.h"
+
+namespace m2s::client {
+
+struct ClientSessionOptions {
+  Camera camera;
+  // Ask the server for deterministic SLAM (HELLO flag), for --fast runs and their replays.
+  bool deterministic = false;
+  std::string client_name = "m2s_client";
+  // How long Start() waits for HELLO_ACK (frames also open the session, so this is not fatal).
+  double hello_timeout_s = 2.0;
+  // Least time between two resync requests while the replica has a gap.
+  double resync_min_interval_s = 0.25;
+  // Seed for session ids (0: random).
+  uint64_t session_seed = 0;
+};
+
+// What happened to one sent frame.
+struct FrameRecord {
+  int64_t seq = 0;
+  int64_t session_id = 0;
+  int64_t capture_time_us = 0;
+  std::optional<Pose3> ground_truth_world_from_camera;
+  int64_t send_wall_us = 0;
+  int num_features = 0;
+  size_t encoded_bytes = 0;
+  bool answered = false;  // a pose estimate arrived
+  int8_t state = pose_estimate_t::STATE_NOT_INITIALIZED;
+  Pose3 world_from_camera;
+  int num_inliers = 0;
+  bool keyframe_created = false;
+  float tracking_ms = 0.f;
+  double latency_ms = 0.0;
+};
+
+struct ClientCounters {
+  int64_t sessions_started = 0;
+  int64_t server_restarts = 0;  // server_instance changed mid-session
+  int64_t sessions_ended_by_server = 0;
+  int64_t rejected = 0;  // REJECTED by the server
+  int64_t poses_received = 0;
+  int64_t deltas_applied = 0;
+  int64_t full_maps = 0;
+  int64_t map_gaps = 0;
+  int64_t resync_requests = 0;
+  int64_t stats_received = 0;
+  int64_t other_session_messages = 0;
+  int64_t bad_messages = 0;  // failed to decode or validate, any channel
+};
+
+class ClientSession {
+ public:
+  ClientSession(Transport* transport, ClientSessionOptions options);
+  ~ClientSession();  // End()
+
+  Status Start();
+  // Publishes the frame with session_id, seq and send_wall_us filled in; returns its seq.
+  Expected<int64_t> Send(wire::FeatureFrame frame);
+  // Waits until the pose for `seq` arrived; false on timeout.
+  bool WaitForPose(int64_t seq, double timeout_s);
+  // Asks for the whole map and waits until it has been applied; false on timeout.
+  bool SyncMap(double timeout_s);
+  // Says BYE and stops the transport. Idempotent.
+  void End();
+
+  std::vector<FrameRecord> Records() const;
+  const MapReplica& replica() const { return replica_; }
+  ClientCounters Counters() const;
+  int64_t session_id() const;
+  int64_t server_instance() const;
+  std::optional<server_stats_t> LastStats() const;
+  Transport* transport() { return transport_; }
+
+ private:
+  void OnMessage(const std::string& channel, const uint8_t* data, size_t size);
+  void OnPose(const pose_estimate_t& pose);
+  void OnMap(const map_delta_t& delta);
+  void OnSession(const session_control_t& message);
+  // Adopts `instance` for the current session; true when it differs from a known one.
+  bool NoteInstanceLocked(int64_t instance);
+  void BeginSession();
+  void PublishControl(int8_t type, int64_t session_id, int64_t last_revision);
+
+  Transport* const transport_;
+  const ClientSessionOptions options_;
+  MapReplica replica_;
+
+  mutable std::mutex mutex_;  // guards the members below
+  std::condition_variable cv_;
+  std::mt19937_64 rng_;
+  bool started_ = false;
+  bool ended_ = false;
+  int64_t session_id_ = 0;
+  int64_t server_instance_ = 0;
+  bool acked_ = false;
+  bool new_session_pending_ = false;
+  int64_t next_seq_ = 1;
+  std::vector<FrameRecord> records_;  // records_[seq - 1]
+  ClientCounters counters_;
+  double last_resync_s_ = -1e9;
+  std::optional<server_stats_t> last_stats_;
+};
+
+}  // namespace m2s::client

@@ -1,0 +1,38 @@
+#include "m2s/client/frame_source.h"
+
+#include <chrono>
+
+namespace m2s::client {
+
+FrameSource::FrameSource(Projector* projector, const Camera& camera, FeatureNoiseOptions noise,
+                         uint32_t num_scene_vertices)
+    : projector_(projector),
+      camera_(camera),
+      noise_(noise),
+      num_scene_vertices_(num_scene_vertices) {}
+
+Expected<wire::FeatureFrame> FrameSource::Make(const Pose3& world_from_camera,
+                                               int64_t capture_time_us, uint64_t frame_index) {
+  const auto start = std::chrono::steady_clock::now();
+  if (Status s = projector_->Project(world_from_camera, camera_, &scratch_); !s) return s;
+  if (noise_.Enabled()) {
+    ApplyFeatureNoise(noise_, camera_, num_scene_vertices_, frame_index, &scratch_);
+  }
+  wire::FeatureFrame frame;
+  frame.capture_time_us = capture_time_us;
+  frame.camera = camera_;
+  frame.ground_truth_world_from_camera = world_from_camera;
+  frame.features.reserve(scratch_.size());
+  for (const ProjectedVertex& p : scratch_) {
+    if (!camera_.InImage(p.u, p.v)) continue;
+    VertexFeature f;
+    f.id = p.id;
+    f.uv = {p.u, p.v};
+    frame.features.push_back(f);
+  }
+  last_projection_ms_ =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  return frame;
+}
+
+}  // namespace m2s::client

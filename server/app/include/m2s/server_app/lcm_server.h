@@ -1,0 +1,68 @@
+// The SLAM server on an LCM network: one IO thread receives raw frames and session messages
+// and hands them to a SessionManager (which only decodes, validates and queues), publishes the
+// sessions' poses and map deltas, ends timed-out sessions and publishes server_stats_t
+// periodically on M2S_STATS (also written to the log).
+//
+// Thread-safety: Start() and Stop() from one controlling thread; Counters() from any thread.
+//
+//   LcmServer server(options);
+//   if (Status s = server.Start(); !s) return fail(s);
+//   ...                      // until SIGTERM
+//   server.Stop();           // ends sessions (saving maps when asked), joins the IO thread
+#pragma once
+
+#include <atomic>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+
+#include "m2s/common/status.h"
+#include "m2s/server_app/session_manager.h"
+
+namespace lcm {
+class LCM;
+class ReceiveBuffer;
+}  // namespace lcm
+
+namespace m2s::server_app {
+
+struct LcmServerOptions {
+  std::string lcm_url = wire::kDefaultLcmUrl;
+  // server_stats_t period in seconds (0: never).
+  double stats_period_s = 5.0;
+  // Write the stats line to the log too.
+  bool log_stats = true;
+  ServerOptions server;
+};
+
+class LcmServer {
+ public:
+  explicit LcmServer(LcmServerOptions options,
+                     SystemFactory factory = &SessionManager::DefaultSystemFactory);
+  ~LcmServer();  // Stop()
+
+  // Opens the LCM URL, subscribes and starts the IO thread.
+  Status Start();
+  // Ends every session and stops the IO thread. Idempotent.
+  void Stop();
+
+  ServerCounters Counters() const;
+  int64_t server_instance() const;
+  SessionManager* manager() { return manager_.get(); }
+
+ private:
+  void IoLoop();
+  void OnRaw(const lcm::ReceiveBuffer* buffer, const std::string& channel);
+  void PublishStats();
+
+  const LcmServerOptions options_;
+  const SystemFactory factory_;
+  std::unique_ptr<lcm::LCM> lcm_;
+  std::mutex publish_mutex_;
+  std::unique_ptr<SessionManager> manager_;
+  std::atomic<bool> stop_{false};
+  std::thread io_thread_;
+};
+
+}  // namespace m2s::server_app

@@ -1,0 +1,151 @@
+// The server's session logic, independent of the transport: raw message bytes in (frames and
+// session control), encoded pose estimates, map deltas and session replies out. The LCM server
+// (lcm_server.h), the on-device client transport and the replay tool all run this same code.
+//
+// Each session owns one slam::System and a worker thread fed by a bounded latest-wins queue:
+// HandleMessage() only decodes, validates and queues, so the caller (the IO thread) never waits
+// for SLAM. With Options::synchronous the frame is tracked in the caller's thread instead
+// (replay: every frame, deterministic). Everything that cannot be used is counted per
+// wire::DropReason and dropped with a rate-limited log line. Memory is bounded: at most
+// max_sessions sessions, queue_capacity frames each, a bounded set of ended session ids.
+//
+// Thread-safety: every public method may be called from any thread. `publish` is called from
+// the session workers (or the caller in synchronous mode) without any internal lock held, so
+// it may call back into HandleMessage().
+//
+//   SessionManager manager(options, [&](const std::string& channel, std::vector<uint8_t> bytes) {
+//     lcm.publish(channel, bytes.data(), bytes.size()); });
+//   manager.HandleMessage(wire::kFrameChannel, data, size);
+#pragma once
+
+#include <array>
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "m2s/common/wire_format.h"
+#include "m2s/slam/system.h"
+
+namespace m2s::server_app {
+
+using PublishFn = std::function<void(const std::string& channel, std::vector<uint8_t> bytes)>;
+using SystemFactory =
+    std::function<Expected<std::unique_ptr<slam::System>>(const slam::Options& options)>;
+
+struct ServerOptions {
+  // SLAM options of every session; the camera comes from the session's HELLO / first frame
+  // and `deterministic` is also set by the HELLO flag FLAG_DETERMINISTIC.
+  slam::Options slam;
+  int max_sessions = 8;
+  // A session without any message for this long is ended.
+  double session_timeout_s = 10.0;
+  // Frames with more features are dropped (wire::DropReason::kTooManyFeatures).
+  int max_features = 200000;
+  // Map deltas are published at most this often per session.
+  double map_rate_hz = 15.0;
+  // Frames waiting per session; when full the oldest is dropped (counted as skipped).
+  int queue_capacity = 1;
+  // Track in the caller's thread (replay, deterministic tests) instead of a worker.
+  bool synchronous = false;
+  // When not empty, each session's map is saved there when it ends.
+  std::string save_maps_dir;
+  // Ended session ids remembered (frames for them are dropped as kEndedSession).
+  int max_ended_sessions = 4096;
+  // At most one log line per drop reason per this period.
+  double drop_log_period_s = 1.0;
+  // Random id of this server instance (0: chosen at random).
+  int64_t server_instance = 0;
+
+  bool Check(std::string* why) const;
+};
+
+struct ServerCounters {
+  int64_t messages_in = 0;       // every message handed to HandleMessage
+  int64_t frames_in = 0;         // feature frames that decoded and validated
+  int64_t frames_processed = 0;  // tracked frames (a pose was published)
+  int64_t frames_skipped = 0;    // dropped by a latest-wins queue
+  int64_t session_messages = 0;  // valid session control messages handled
+  int64_t ignored = 0;           // valid messages not meant for the server (its own replies)
+  int64_t sessions_started = 0;
+  int64_t sessions_ended = 0;
+  int sessions_active = 0;
+  std::array<int64_t, wire::kNumDropReasons> drops{};
+  int64_t total_drops() const;
+};
+
+class Session;
+
+class SessionManager {
+ public:
+  static Expected<std::unique_ptr<slam::System>> DefaultSystemFactory(const slam::Options& options);
+
+  // options must pass Check() (programmer error otherwise).
+  SessionManager(ServerOptions options, PublishFn publish,
+                 SystemFactory factory = &SessionManager::DefaultSystemFactory);
+  ~SessionManager();  // ends every session
+  SessionManager(const SessionManager&) = delete;
+  SessionManager& operator=(const SessionManager&) = delete;
+
+  // Decodes, validates and routes one message received on `channel` (frame or session
+  // channel; other channels are ignored).
+  void HandleMessage(const std::string& channel, const void* data, size_t size);
+  // Ends the sessions that timed out; call periodically (the LCM server does, every 100 ms).
+  void Tick();
+  // Ends every session (maps saved when asked), e.g. on SIGTERM. Idempotent.
+  void Shutdown();
+  // Blocks until every queued frame has been tracked (tests, replay).
+  void Drain();
+
+  ServerCounters Counters() const;
+  server_stats_t StatsMessage() const;
+  // One human-readable line of the counters (non-zero drop reasons only).
+  std::string StatsLine() const;
+  int64_t server_instance() const { return options_.server_instance; }
+  const ServerOptions& options() const { return options_; }
+
+ private:
+  friend class Session;
+  void HandleFrame(const void* data, size_t size);
+  void HandleSessionControl(const void* data, size_t size);
+  // Returns the session (created when needed); nullptr when refused (reason counted).
+  std::shared_ptr<Session> FindOrCreate(int64_t session_id, const Camera& camera, int32_t flags,
+                                        bool from_hello, wire::DropReason* refused);
+  void EndSession(int64_t session_id, const std::string& reason);
+  void Drop(wire::DropReason reason, const std::string& detail);
+  void Publish(const std::string& channel, std::vector<uint8_t> bytes);
+  void RecordTrackingTime(double ms);
+  void CountProcessed();
+  void CountSkipped();
+  void ReaperLoop();
+
+  const ServerOptions options_;
+  const PublishFn publish_;
+  const SystemFactory factory_;
+
+  mutable std::mutex mutex_;  // guards the members below
+  std::map<int64_t, std::shared_ptr<Session>> sessions_;
+  std::deque<int64_t> ended_order_;
+  std::map<int64_t, bool> ended_;
+  std::deque<std::shared_ptr<Session>> to_reap_;
+  std::condition_variable reap_cv_;
+  bool shutting_down_ = false;
+  ServerCounters counters_;
+  std::array<double, wire::kNumDropReasons> last_drop_log_s_{};
+  std::array<int64_t, wire::kNumDropReasons> drops_since_log_{};
+  std::atomic<int64_t> frames_processed_{0};
+  std::atomic<int64_t> frames_skipped_{0};
+  std::vector<float> tracking_ms_ring_;
+  size_t tracking_ms_next_ = 0;
+
+  std::thread reaper_;
+};
+
+}  // namespace m2s::server_app

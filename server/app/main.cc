@@ -1,0 +1,119 @@
+// m2s_server: the Mesh2SLAM SLAM server on LCM.
+//
+//   m2s_server [--lcm-url URL] [--config FILE] [--max-sessions N] [--session-timeout S]
+//              [--save-maps DIR] [--max-features N] [--stats-period S]
+//
+// --config reads a YAML/JSON file (cv::FileStorage) whose keys are the flag names with
+// underscores (max_sessions, session_timeout, max_features, stats_period, map_rate_hz,
+// queue_capacity, deterministic, num_ba_threads, max_keyframes, drift_correction); flags given
+// on the command line win. SIGINT / SIGTERM stop the server cleanly.
+#include <csignal>
+#include <filesystem>
+#include <iostream>
+
+#include <CLI/CLI.hpp>
+#include <opencv2/core/persistence.hpp>
+
+#include "m2s/server_app/lcm_server.h"
+
+namespace {
+
+// Applies the config file's values to the options that were not given as flags.
+bool ReadConfig(const std::string& path, const CLI::App& app, m2s::server_app::LcmServerOptions* o,
+                std::string* why) {
+  cv::FileStorage fs;
+  try {
+    if (!fs.open(path, cv::FileStorage::READ)) {
+      *why = "cannot open config file " + path;
+      return false;
+    }
+  } catch (const cv::Exception& e) {
+    *why = "cannot parse config file " + path + ": " + e.what();
+    return false;
+  }
+  auto given = [&app](const char* flag) { return app.count(flag) > 0; };
+  auto read_int = [&fs](const char* key, int* value) {
+    if (!fs[key].empty()) *value = static_cast<int>(fs[key]);
+  };
+  auto read_double = [&fs](const char* key, double* value) {
+    if (!fs[key].empty()) *value = static_cast<double>(fs[key]);
+  };
+  auto read_bool = [&fs](const char* key, bool* value) {
+    if (!fs[key].empty()) *value = static_cast<int>(fs[key]) != 0;
+  };
+  m2s::server_app::ServerOptions& s = o->server;
+  if (!given("--max-sessions")) read_int("max_sessions", &s.max_sessions);
+  if (!given("--session-timeout")) read_double("session_timeout", &s.session_timeout_s);
+  if (!given("--max-features")) read_int("max_features", &s.max_features);
+  if (!given("--stats-period")) read_double("stats_period", &o->stats_period_s);
+  if (!given("--lcm-url") && !fs["lcm_url"].empty()) {
+    o->lcm_url = static_cast<std::string>(fs["lcm_url"]);
+  }
+  if (!given("--save-maps") && !fs["save_maps"].empty()) {
+    s.save_maps_dir = static_cast<std::string>(fs["save_maps"]);
+  }
+  read_double("map_rate_hz", &s.map_rate_hz);
+  read_int("queue_capacity", &s.queue_capacity);
+  read_bool("deterministic", &s.slam.deterministic);
+  read_int("num_ba_threads", &s.slam.num_ba_threads);
+  read_int("max_keyframes", &s.slam.max_keyframes);
+  read_bool("drift_correction", &s.slam.drift_correction);
+  return true;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  m2s::server_app::LcmServerOptions options;
+  std::string config;
+  CLI::App app{"Mesh2SLAM server: vertex-feature frames in, poses and map deltas out, over LCM"};
+  app.add_option("--lcm-url", options.lcm_url, "LCM URL (udpm://...?ttl=0, memq://, file://)");
+  app.add_option("--config", config, "YAML/JSON file with server options");
+  app.add_option("--max-sessions", options.server.max_sessions, "Concurrent sessions");
+  app.add_option("--session-timeout", options.server.session_timeout_s,
+                 "End a session after this many seconds without messages");
+  app.add_option("--save-maps", options.server.save_maps_dir,
+                 "Save each session's map into this folder when it ends");
+  app.add_option("--max-features", options.server.max_features, "Largest frame accepted");
+  app.add_option("--stats-period", options.stats_period_s, "Seconds between stats (0: never)");
+  app.add_flag("--deterministic", options.server.slam.deterministic,
+               "Run every session's SLAM deterministically");
+  CLI11_PARSE(app, argc, argv);
+
+  std::string why;
+  if (!config.empty() && !ReadConfig(config, app, &options, &why)) {
+    std::cerr << "m2s_server: " << why << "\n";
+    return 2;
+  }
+  if (!options.server.save_maps_dir.empty()) {
+    std::error_code ec;
+    std::filesystem::create_directories(options.server.save_maps_dir, ec);
+    if (ec) {
+      std::cerr << "m2s_server: cannot create " << options.server.save_maps_dir << ": "
+                << ec.message() << "\n";
+      return 2;
+    }
+  }
+  if (!options.server.Check(&why)) {
+    std::cerr << "m2s_server: " << why << "\n";
+    return 2;
+  }
+
+  // Block the stop signals in every thread; this thread waits for them below.
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGINT);
+  sigaddset(&signals, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+
+  m2s::server_app::LcmServer server(options);
+  if (m2s::Status started = server.Start(); !started) {
+    std::cerr << "m2s_server: " << started.message() << "\n";
+    return 1;
+  }
+  int signal_number = 0;
+  sigwait(&signals, &signal_number);
+  std::cerr << "m2s_server: " << (signal_number == SIGINT ? "SIGINT" : "SIGTERM") << ", stopping\n";
+  server.Stop();
+  return 0;
+}

@@ -1,0 +1,369 @@
+#include "m2s/server_app/session_manager.h"
+
+#include <algorithm>
+#include <chrono>
+#include <random>
+#include <sstream>
+
+#include "m2s/common/check.h"
+#include "m2s/common/logging.h"
+#include "m2s/server_app/messages.h"
+#include "session.h"
+
+namespace m2s::server_app {
+namespace {
+
+constexpr size_t kTrackingRingSize = 2048;
+
+int64_t RandomInstance() {
+  std::random_device device;
+  std::mt19937_64 rng((static_cast<uint64_t>(device()) << 32) ^ device() ^
+                      static_cast<uint64_t>(wire::WallClockMicros()));
+  int64_t value = 0;
+  while (value == 0) value = static_cast<int64_t>(rng() >> 1);
+  return value;
+}
+
+double NowSeconds() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+float Percentile(std::vector<float> values, double q) {
+  if (values.empty()) return 0.f;
+  const size_t k = std::min(values.size() - 1, static_cast<size_t>(q * (values.size() - 1) + 0.5));
+  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(k), values.end());
+  return values[k];
+}
+
+ServerOptions WithInstance(ServerOptions options) {
+  if (options.server_instance == 0) options.server_instance = RandomInstance();
+  return options;
+}
+
+}  // namespace
+
+bool ServerOptions::Check(std::string* why) const {
+  auto fail = [why](const char* message) {
+    if (why) *why = message;
+    return false;
+  };
+  if (max_sessions <= 0) return fail("max_sessions must be positive");
+  if (!(session_timeout_s > 0)) return fail("session_timeout_s must be positive");
+  if (max_features <= 0) return fail("max_features must be positive");
+  if (!(map_rate_hz > 0) || map_rate_hz > 1000) return fail("map_rate_hz must be in (0, 1000]");
+  if (queue_capacity <= 0) return fail("queue_capacity must be positive");
+  if (max_ended_sessions <= 0) return fail("max_ended_sessions must be positive");
+  if (!(drop_log_period_s >= 0)) return fail("drop_log_period_s must be >= 0");
+  return true;
+}
+
+int64_t ServerCounters::total_drops() const {
+  int64_t total = 0;
+  for (int64_t d : drops) total += d;
+  return total;
+}
+
+Expected<std::unique_ptr<slam::System>> SessionManager::DefaultSystemFactory(
+    const slam::Options& options) {
+  return slam::System::Create(options);
+}
+
+SessionManager::SessionManager(ServerOptions options, PublishFn publish, SystemFactory factory)
+    : options_(WithInstance(std::move(options))),
+      publish_(std::move(publish)),
+      factory_(std::move(factory)) {
+  std::string why;
+  M2S_CHECK(options_.Check(&why)) << why;
+  M2S_CHECK(publish_ && factory_) << "publish and factory must be set";
+  tracking_ms_ring_.reserve(kTrackingRingSize);
+  last_drop_log_s_.fill(-1e9);
+  reaper_ = std::thread([this] { ReaperLoop(); });
+}
+
+SessionManager::~SessionManager() { Shutdown(); }
+
+void SessionManager::HandleMessage(const std::string& channel, const void* data, size_t size) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++counters_.messages_in;
+  }
+  if (channel == wire::kFrameChannel) {
+    HandleFrame(data, size);
+  } else if (channel == wire::kSessionChannel) {
+    HandleSessionControl(data, size);
+  } else {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++counters_.ignored;
+  }
+}
+
+void SessionManager::HandleFrame(const void* data, size_t size) {
+  auto frame = wire::DecodeFeatureFrame(data, size, {options_.max_features});
+  if (!frame) return Drop(frame.reason(), frame.error());
+  wire::DropReason reason{};
+  auto session = FindOrCreate(frame->session_id, frame->camera, 0, false, &reason);
+  if (!session) return Drop(reason, "frame for session " + std::to_string(frame->session_id));
+  std::string detail;
+  if (!session->Accept(std::move(*frame), &reason, &detail)) return Drop(reason, detail);
+  std::lock_guard<std::mutex> lock(mutex_);
+  ++counters_.frames_in;
+}
+
+void SessionManager::HandleSessionControl(const void* data, size_t size) {
+  auto message = wire::DecodeSessionControl(data, size);
+  if (!message) return Drop(message.reason(), message.error());
+  const session_control_t& m = *message;
+  switch (m.type) {
+    case session_control_t::HELLO: {
+      auto camera = wire::FromMessage(m.camera);  // checked by the decoder
+      wire::DropReason reason{};
+      auto session = FindOrCreate(m.session_id, *camera, m.flags, true, &reason);
+      if (!session) return Drop(reason, "HELLO for session " + std::to_string(m.session_id));
+      session->Touch();
+      session_control_t ack =
+          MakeSessionMessage(session_control_t::HELLO_ACK, m.session_id, server_instance());
+      ack.camera = wire::ToMessage(session->camera());
+      ack.flags = m.flags;
+      Publish(wire::kSessionChannel, wire::Encode(ack));
+      break;
+    }
+    case session_control_t::RESET:
+    case session_control_t::RESYNC_REQUEST:
+    case session_control_t::BYE: {
+      std::shared_ptr<Session> session;
+      {
+        std::lock_guard<std::mutex> lock(mutex_);
+        auto it = sessions_.find(m.session_id);
+        if (it != sessions_.end()) session = it->second;
+      }
+      if (!session) {
+        return Drop(wire::DropReason::kUnknownSession,
+                    "session message type " + std::to_string(m.type) + " for unknown session " +
+                        std::to_string(m.session_id));
+      }
+      if (m.type == session_control_t::RESET) session->RequestReset();
+      if (m.type == session_control_t::RESYNC_REQUEST) session->RequestResync();
+      if (m.type == session_control_t::BYE) EndSession(m.session_id, "bye");
+      break;
+    }
+    default: {  // server -> client types (our own replies come back on the same channel)
+      std::lock_guard<std::mutex> lock(mutex_);
+      ++counters_.ignored;
+      return;
+    }
+  }
+  std::lock_guard<std::mutex> lock(mutex_);
+  ++counters_.session_messages;
+}
+
+std::shared_ptr<Session> SessionManager::FindOrCreate(int64_t session_id, const Camera& camera,
+                                                      int32_t flags, bool from_hello,
+                                                      wire::DropReason* refused) {
+  std::unique_lock<std::mutex> lock(mutex_);
+  auto it = sessions_.find(session_id);
+  if (it != sessions_.end()) return it->second;
+  if (shutting_down_ || ended_.count(session_id)) {
+    *refused = wire::DropReason::kEndedSession;
+    return nullptr;
+  }
+  if (static_cast<int>(sessions_.size()) >= options_.max_sessions) {
+    *refused = wire::DropReason::kMaxSessions;
+    lock.unlock();
+    session_control_t reply =
+        MakeSessionMessage(session_control_t::REJECTED, session_id, server_instance());
+    reply.reason = "server full: " + std::to_string(options_.max_sessions) + " sessions";
+    Publish(wire::kSessionChannel, wire::Encode(reply));
+    return nullptr;
+  }
+  slam::Options slam_options = options_.slam;
+  slam_options.camera = camera;
+  slam_options.max_features_per_frame = options_.max_features;
+  if (flags & session_control_t::FLAG_DETERMINISTIC) slam_options.deterministic = true;
+  auto system = factory_(slam_options);
+  if (!system) {
+    *refused = wire::DropReason::kBadCamera;
+    M2S_LOG(kWarning) << "session " << session_id
+                      << ": SLAM refused the options: " << system.error();
+    return nullptr;
+  }
+  auto session = std::make_shared<Session>(this, session_id, camera, std::move(*system));
+  sessions_[session_id] = session;
+  ++counters_.sessions_started;
+  M2S_LOG(kInfo) << "session " << session_id << " started (" << camera.width << "x" << camera.height
+                 << (from_hello ? ", hello" : ", first frame")
+                 << (slam_options.deterministic ? ", deterministic" : "") << ")";
+  return session;
+}
+
+void SessionManager::EndSession(int64_t session_id, const std::string& reason) {
+  std::shared_ptr<Session> session;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    auto it = sessions_.find(session_id);
+    if (it == sessions_.end()) return;
+    session = it->second;
+    sessions_.erase(it);
+    ended_[session_id] = true;
+    ended_order_.push_back(session_id);
+    while (static_cast<int>(ended_order_.size()) > options_.max_ended_sessions) {
+      ended_.erase(ended_order_.front());
+      ended_order_.pop_front();
+    }
+    ++counters_.sessions_ended;
+  }
+  session->Stop();  // outside mutex_: the session calls back into the counters
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    to_reap_.push_back(session);
+    reap_cv_.notify_all();
+  }
+  M2S_LOG(kInfo) << "session " << session_id << " ended (" << reason << ")";
+  session_control_t m =
+      MakeSessionMessage(session_control_t::SESSION_ENDED, session_id, server_instance());
+  m.reason = reason;
+  Publish(wire::kSessionChannel, wire::Encode(m));
+}
+
+void SessionManager::Tick() {
+  const auto now = Session::Clock::now();
+  std::vector<std::shared_ptr<Session>> sessions;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    for (const auto& entry : sessions_) sessions.push_back(entry.second);
+  }
+  std::vector<int64_t> expired;
+  for (const auto& session : sessions) {
+    if (session->IdleSeconds(now) > options_.session_timeout_s) expired.push_back(session->id());
+  }
+  for (int64_t id : expired) EndSession(id, "timeout");
+}
+
+void SessionManager::Shutdown() {
+  std::vector<int64_t> ids;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (shutting_down_ && !reaper_.joinable()) return;
+    for (const auto& entry : sessions_) ids.push_back(entry.first);
+  }
+  for (int64_t id : ids) EndSession(id, "server shutdown");
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    shutting_down_ = true;
+    reap_cv_.notify_all();
+  }
+  if (reaper_.joinable()) reaper_.join();
+}
+
+void SessionManager::Drain() {
+  std::vector<std::shared_ptr<Session>> sessions;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    for (const auto& entry : sessions_) sessions.push_back(entry.second);
+  }
+  for (const auto& session : sessions) session->Drain();
+}
+
+void SessionManager::ReaperLoop() {
+  std::unique_lock<std::mutex> lock(mutex_);
+  while (true) {
+    reap_cv_.wait(lock, [this] { return shutting_down_ || !to_reap_.empty(); });
+    if (to_reap_.empty()) {
+      if (shutting_down_) break;
+      continue;
+    }
+    std::shared_ptr<Session> session = std::move(to_reap_.front());
+    to_reap_.pop_front();
+    lock.unlock();
+    session->Finish(options_.save_maps_dir);
+    session.reset();
+    lock.lock();
+  }
+}
+
+void SessionManager::Drop(wire::DropReason reason, const std::string& detail) {
+  const int r = static_cast<int>(reason);
+  int64_t suppressed = 0;
+  bool log = false;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++counters_.drops[r];
+    ++drops_since_log_[r];
+    const double now = NowSeconds();
+    if (now - last_drop_log_s_[r] >= options_.drop_log_period_s) {
+      log = true;
+      suppressed = drops_since_log_[r] - 1;
+      drops_since_log_[r] = 0;
+      last_drop_log_s_[r] = now;
+    }
+  }
+  if (log) {
+    M2S_LOG(kWarning) << "dropped (" << wire::ToString(reason) << "): " << detail
+                      << (suppressed > 0 ? " (+" + std::to_string(suppressed) + " more)" : "");
+  }
+}
+
+void SessionManager::Publish(const std::string& channel, std::vector<uint8_t> bytes) {
+  publish_(channel, std::move(bytes));
+}
+
+void SessionManager::RecordTrackingTime(double ms) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (tracking_ms_ring_.size() < kTrackingRingSize) {
+    tracking_ms_ring_.push_back(static_cast<float>(ms));
+  } else {
+    tracking_ms_ring_[tracking_ms_next_] = static_cast<float>(ms);
+  }
+  tracking_ms_next_ = (tracking_ms_next_ + 1) % kTrackingRingSize;
+}
+
+void SessionManager::CountProcessed() { frames_processed_.fetch_add(1); }
+
+void SessionManager::CountSkipped() { frames_skipped_.fetch_add(1); }
+
+ServerCounters SessionManager::Counters() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  ServerCounters counters = counters_;
+  counters.frames_processed = frames_processed_.load();
+  counters.frames_skipped = frames_skipped_.load();
+  counters.sessions_active = static_cast<int>(sessions_.size());
+  return counters;
+}
+
+server_stats_t SessionManager::StatsMessage() const {
+  const ServerCounters c = Counters();
+  std::vector<float> times;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    times = tracking_ms_ring_;
+  }
+  server_stats_t m;
+  m.version = server_stats_t::VERSION;
+  m.server_instance = server_instance();
+  m.wall_us = wire::WallClockMicros();
+  m.sessions_active = c.sessions_active;
+  m.frames_in = c.frames_in;
+  m.frames_processed = c.frames_processed;
+  m.frames_skipped = c.frames_skipped;
+  for (int r = 0; r < wire::kNumDropReasons; ++r) {
+    m.drop_reasons.push_back(wire::ToString(static_cast<wire::DropReason>(r)));
+    m.drop_counts.push_back(c.drops[r]);
+  }
+  m.num_drop_reasons = static_cast<int32_t>(m.drop_reasons.size());
+  m.tracking_ms_p50 = Percentile(times, 0.5);
+  m.tracking_ms_p95 = Percentile(times, 0.95);
+  return m;
+}
+
+std::string SessionManager::StatsLine() const {
+  const server_stats_t m = StatsMessage();
+  std::ostringstream line;
+  line << "sessions " << m.sessions_active << ", frames in " << m.frames_in << ", processed "
+       << m.frames_processed << ", skipped " << m.frames_skipped << ", tracking p50 "
+       << m.tracking_ms_p50 << " ms p95 " << m.tracking_ms_p95 << " ms";
+  for (int r = 0; r < m.num_drop_reasons; ++r) {
+    if (m.drop_counts[r] > 0) line << ", " << m.drop_reasons[r] << " " << m.drop_counts[r];
+  }
+  return line.str();
+}
+
+}  // namespace m2s::server_app
