@@ -1,0 +1,189 @@
+#include "mapping/drift_corrector.h"
+
+#include <algorithm>
+#include <cmath>
+#include <unordered_map>
+#include <unordered_set>
+
+#include "m2s/common/alignment.h"
+#include "m2s/common/logging.h"
+#include "mapping/triangulation.h"
+#include "optimization/problems.h"
+
+namespace m2s::slam {
+namespace {
+
+constexpr double kTrimFactor = 3.0;         // alignment outliers: residual > 3x median
+constexpr int kGiveUpRecentViews = 4;       // that many recent views and still no triangulation
+constexpr int kCovisibilityEdgesPerKf = 5;  // essential-graph edges per keyframe
+constexpr int kMinEdgeCovisibility = 50;
+constexpr double kLoopEdgeWeight = 1.0;
+
+double Median(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+  return v[v.size() / 2];
+}
+
+}  // namespace
+
+DriftDecision DriftCorrector::Check(KeyframeId keyframe, const std::vector<VertexId>& dormant) {
+  std::vector<Eigen::Vector3d> old_positions, new_positions;
+  std::vector<double> depths;
+  KeyframeId newest_old = 0;
+  size_t max_recent_views = 0;
+  TriangulationChecks checks;
+  checks.min_parallax_deg = options_.min_triangulation_parallax_deg;
+  checks.max_reprojection_px = std::sqrt(5.991) * options_.pixel_sigma;
+  map_->Read([&](const MapData& m) {
+    const Keyframe* kf = m.keyframe(keyframe);
+    if (kf == nullptr) return;
+    const Pose3 kf_from_world = kf->world_from_camera.Inverse();
+    for (const VertexId id : dormant) {
+      const MapPoint* p = m.point(id);
+      const std::vector<KeyframeId>* seen = m.KeyframesWithFeature(id);
+      if (p == nullptr || seen == nullptr) continue;
+      const KeyframeId last = p->last_observer();
+      std::vector<Pose3> poses;
+      std::vector<Eigen::Vector2d> uvs;
+      for (auto it = std::upper_bound(seen->begin(), seen->end(), last); it != seen->end(); ++it) {
+        const Keyframe* o = m.keyframe(*it);
+        poses.push_back(o->world_from_camera.Inverse());
+        uvs.push_back(*o->Find(id));
+      }
+      max_recent_views = std::max(max_recent_views, poses.size());
+      if (poses.size() < 2) continue;
+      const auto q = TriangulateChecked(options_.camera, checks, poses, uvs);
+      if (!q) continue;
+      old_positions.push_back(p->position);
+      new_positions.push_back(*q);
+      depths.push_back((kf_from_world * *q).z());
+      newest_old = std::max(newest_old, last);
+    }
+  });
+  if (static_cast<int>(new_positions.size()) < options_.loop_min_points) {
+    return max_recent_views >= static_cast<size_t>(kGiveUpRecentViews) ? DriftDecision::kConsistent
+                                                                       : DriftDecision::kDeferred;
+  }
+  const double median_depth = std::max(Median(depths), 1e-9);
+  std::vector<double> disagreement(new_positions.size());
+  for (size_t i = 0; i < new_positions.size(); ++i) {
+    disagreement[i] = (new_positions[i] - old_positions[i]).norm();
+  }
+  last_error_ = Median(disagreement) / median_depth;
+  if (last_error_ < options_.loop_min_error) return DriftDecision::kConsistent;
+
+  // Old from new, trimmed of outliers (wrong ids, poorly triangulated points), then re-fitted.
+  auto s = AlignPoints(new_positions, old_positions, /*with_scale=*/true);
+  if (!s) return DriftDecision::kConsistent;
+  std::vector<double> residual(new_positions.size());
+  for (size_t i = 0; i < new_positions.size(); ++i)
+    residual[i] = ((*s) * new_positions[i] - old_positions[i]).norm();
+  const double bound = kTrimFactor * Median(residual);
+  std::vector<Eigen::Vector3d> src, dst;
+  for (size_t i = 0; i < new_positions.size(); ++i) {
+    if (residual[i] <= bound) src.push_back(new_positions[i]), dst.push_back(old_positions[i]);
+  }
+  if (static_cast<int>(src.size()) < options_.loop_min_points) return DriftDecision::kConsistent;
+  s = AlignPoints(src, dst, /*with_scale=*/true);
+  if (!s) return DriftDecision::kConsistent;
+  // The correction must explain the disagreement; otherwise it is noise, not drift.
+  std::vector<double> after;
+  for (size_t i = 0; i < src.size(); ++i) after.push_back(((*s) * src[i] - dst[i]).norm());
+  if (Median(after) / median_depth > 0.5 * last_error_) return DriftDecision::kConsistent;
+  Correct(keyframe, *s, newest_old);
+  return DriftDecision::kCorrected;
+}
+
+void DriftCorrector::Correct(KeyframeId keyframe, const Sim3& old_from_new, KeyframeId newest_old) {
+  std::vector<PoseGraphNode> nodes;
+  std::vector<PoseGraphEdge> edges;
+  std::unordered_map<KeyframeId, int> index;
+  std::vector<Pose3> before;
+  map_->Read([&](const MapData& m) {
+    const Keyframe* current = m.keyframe(keyframe);
+    // The current keyframe's neighbourhood in the drifted frame moves with the alignment.
+    std::unordered_set<KeyframeId> moved = {keyframe};
+    for (const auto& [other, shared] : m.Covisible(keyframe, 1)) {
+      if (other > newest_old) moved.insert(other);
+    }
+    // Old keyframes observing re-observed points anchor the loop.
+    std::unordered_set<KeyframeId> anchors;
+    for (const VertexId vid : current->ids) {
+      const MapPoint* p = m.point(vid);
+      if (p == nullptr || p->last_observer() > newest_old) continue;
+      for (const KeyframeId o : p->observers) anchors.insert(o);
+    }
+    for (const auto& [id, kf] : m.keyframes()) {
+      index[id] = static_cast<int>(nodes.size());
+      before.push_back(kf.world_from_camera);
+      const Sim3 pose(kf.world_from_camera);
+      const bool fixed = anchors.count(id) > 0 || id == m.keyframes().begin()->first;
+      nodes.push_back({id, moved.count(id) ? old_from_new * pose : pose, fixed});
+    }
+    auto add_edge = [&](KeyframeId a, KeyframeId b, const Sim3& from_from_to, double w) {
+      edges.push_back({index.at(a), index.at(b), from_from_to, w});
+    };
+    KeyframeId prev = 0;
+    bool has_prev = false;
+    for (const auto& [id, kf] : m.keyframes()) {
+      if (has_prev) {
+        add_edge(prev, id,
+                 Sim3(m.keyframe(prev)->world_from_camera.Inverse() * kf.world_from_camera), 1.0);
+      }
+      int added = 0;
+      for (const auto& [other, shared] : m.Covisible(id, kMinEdgeCovisibility)) {
+        if (added >= kCovisibilityEdgesPerKf) break;
+        if (other >= id) continue;
+        if (has_prev && other == prev) continue;
+        add_edge(other, id,
+                 Sim3(m.keyframe(other)->world_from_camera.Inverse() * kf.world_from_camera), 1.0);
+        ++added;
+      }
+      prev = id;
+      has_prev = true;
+    }
+    for (const KeyframeId a : anchors) {
+      for (const KeyframeId b : moved) {
+        add_edge(a, b,
+                 Sim3(m.keyframe(a)->world_from_camera.Inverse()) * old_from_new *
+                     Sim3(m.keyframe(b)->world_from_camera),
+                 kLoopEdgeWeight);
+      }
+    }
+  });
+  PoseGraphOptions pg;
+  const PoseGraphResult result = OptimizePoseGraph(pg, &nodes, edges);
+  if (!result.success) {
+    M2S_LOG(kWarning) << "drift correction: pose graph failed; map left as it was";
+    return;
+  }
+  Sim3 current_new_from_old;
+  map_->Write([&](MapData& m) {
+    std::unordered_map<KeyframeId, Sim3> new_from_old;
+    for (size_t i = 0; i < nodes.size(); ++i) {
+      new_from_old[nodes[i].id] = nodes[i].world_from_camera * Sim3(before[i].Inverse());
+    }
+    std::vector<VertexId> ids;
+    for (const auto& [id, p] : m.points()) ids.push_back(id);
+    for (const VertexId id : ids) {
+      const MapPoint* p = m.point(id);
+      KeyframeId ref = p->reference_keyframe;
+      if (!new_from_old.count(ref)) {
+        if (p->observers.empty()) continue;
+        ref = p->observers.front();
+      }
+      m.SetPointPosition(id, new_from_old.at(ref) * p->position);
+    }
+    for (const PoseGraphNode& n : nodes) {
+      m.SetKeyframePose(n.id,
+                        Pose3(n.world_from_camera.rotation(), n.world_from_camera.translation()));
+    }
+    current_new_from_old = new_from_old.at(keyframe);
+  });
+  map_->PublishCorrection(current_new_from_old);
+  M2S_LOG(kInfo) << "drift correction at keyframe " << keyframe << ": error " << last_error_
+                 << " of median depth, scale " << old_from_new.scale();
+}
+
+}  // namespace m2s::slam

@@ -1,0 +1,361 @@
+#include "mapping/local_mapper.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <unordered_map>
+#include <unordered_set>
+
+#include "m2s/common/logging.h"
+#include "optimization/problems.h"
+
+namespace m2s::slam {
+namespace {
+
+// Fixed keyframes in a local BA: at most this multiple of the window (most shared first).
+constexpr int kFixedKeyframesPerWindow = 2;
+// A point is well observed for keyframe redundancy when this many other keyframes see it.
+constexpr int kRedundancyObservers = 3;
+// Covisibility needed to count as a neighbour in the local window.
+constexpr int kMinCovisiblePoints = 15;
+
+BundleAdjustmentOptions MakeBaOptions(const Options& options, int max_iterations) {
+  BundleAdjustmentOptions ba;
+  ba.pixel_sigma = options.pixel_sigma;
+  ba.huber_delta_px = std::sqrt(5.991) * options.pixel_sigma;
+  ba.max_iterations = max_iterations;
+  ba.num_threads = options.num_ba_threads;
+  return ba;
+}
+
+}  // namespace
+
+LocalMapper::LocalMapper(const Options& options, Map* map)
+    : options_(options), map_(map), drift_(options, map) {
+  checks_.min_parallax_deg = options.min_triangulation_parallax_deg;
+  checks_.max_reprojection_px = std::sqrt(5.991) * options.pixel_sigma;
+}
+
+MappingStats LocalMapper::stats() const {
+  std::lock_guard<std::mutex> lock(stats_mutex_);
+  return stats_;
+}
+
+void LocalMapper::InsertInitialMap(const InitialMap& initial, KeyframeId first, KeyframeId second) {
+  map_->Write([&](MapData& m) {
+    for (const auto& [frame, id] :
+         {std::pair{&initial.first, first}, std::pair{&initial.second, second}}) {
+      Keyframe kf;
+      kf.id = id;
+      kf.seq = frame->seq;
+      kf.timestamp = frame->timestamp;
+      kf.world_from_camera = frame->world_from_camera;
+      kf.ids = frame->features.ids;
+      kf.uvs = frame->features.uvs;
+      m.AddKeyframe(std::move(kf));
+    }
+    for (size_t i = 0; i < initial.point_ids.size(); ++i) {
+      m.AddPoint(initial.point_ids[i], initial.points[i], first);
+      m.AddObservation(initial.point_ids[i], first);
+      m.AddObservation(initial.point_ids[i], second);
+    }
+  });
+  std::lock_guard<std::mutex> lock(stats_mutex_);
+  stats_.points_created += static_cast<int64_t>(initial.point_ids.size());
+}
+
+void LocalMapper::Process(const KeyframeCandidate& c) {
+  map_->Write([&](MapData& m) {
+    Keyframe kf;
+    kf.id = c.id;
+    kf.seq = c.seq;
+    kf.timestamp = c.timestamp;
+    kf.world_from_camera = c.world_from_camera;
+    kf.ids = c.features.ids;
+    kf.uvs = c.features.uvs;
+    m.AddKeyframe(std::move(kf));
+    for (const VertexId id : c.tracked_points) m.AddObservation(id, c.id);
+  });
+  bool corrected = false;
+  if (!c.dormant_points.empty()) {
+    DriftDecision decision = DriftDecision::kConsistent;
+    if (options_.drift_correction &&
+        static_cast<int>(c.dormant_points.size()) >= options_.loop_min_points) {
+      decision = drift_.Check(c.id, c.dormant_points);
+    }
+    if (decision != DriftDecision::kDeferred) {
+      // Old points are re-observed: from now on they are ordinary observations.
+      map_->Write([&](MapData& m) {
+        for (const VertexId id : c.dormant_points) m.AddObservation(id, c.id);
+      });
+    }
+    corrected = decision == DriftDecision::kCorrected;
+  }
+  TriangulateNewPoints(c.id);
+  if (corrected) {
+    GlobalBundleAdjust(/*max_iterations=*/15);
+    std::lock_guard<std::mutex> lock(stats_mutex_);
+    ++stats_.loop_corrections;
+  } else {
+    LocalBundleAdjust(c.id);
+  }
+  CullKeyframes(c.id);
+  std::lock_guard<std::mutex> lock(stats_mutex_);
+  ++stats_.keyframes_processed;
+}
+
+void LocalMapper::TriangulateNewPoints(KeyframeId kf_id) {
+  struct Candidate {
+    VertexId id;
+    std::vector<KeyframeId> kfs;  // the new keyframe first
+    std::vector<Eigen::Vector2d> uvs;
+  };
+  std::vector<Candidate> candidates;
+  std::unordered_map<KeyframeId, Pose3> camera_from_world;
+  map_->Read([&](const MapData& m) {
+    const Keyframe* kf = m.keyframe(kf_id);
+    if (kf == nullptr) return;
+    camera_from_world[kf_id] = kf->world_from_camera.Inverse();
+    for (size_t i = 0; i < kf->ids.size(); ++i) {
+      const VertexId id = kf->ids[i];
+      if (m.point(id) != nullptr) continue;
+      const std::vector<KeyframeId>* seen = m.KeyframesWithFeature(id);
+      if (seen == nullptr || seen->size() < 2) continue;
+      Candidate c{id, {kf_id}, {kf->uvs[i]}};
+      for (const KeyframeId other : *seen) {
+        if (other == kf_id) continue;
+        const Keyframe* o = m.keyframe(other);
+        c.kfs.push_back(other);
+        c.uvs.push_back(*o->Find(id));
+        if (!camera_from_world.count(other))
+          camera_from_world[other] = o->world_from_camera.Inverse();
+      }
+      candidates.push_back(std::move(c));
+    }
+  });
+  struct NewPoint {
+    VertexId id;
+    Eigen::Vector3d position;
+    std::vector<KeyframeId> observers;
+  };
+  std::vector<NewPoint> created;
+  const double max_err_sq = checks_.max_reprojection_px * checks_.max_reprojection_px;
+  for (const Candidate& c : candidates) {
+    // Pair the new keyframe with the view of widest baseline, then collect agreeing views.
+    const Pose3& cfw0 = camera_from_world[kf_id];
+    const Eigen::Vector3d c0 = cfw0.Inverse().translation();
+    size_t best = 0;
+    double best_baseline = -1.0;
+    for (size_t k = 1; k < c.kfs.size(); ++k) {
+      const double b = (camera_from_world[c.kfs[k]].Inverse().translation() - c0).norm();
+      if (b > best_baseline) best_baseline = b, best = k;
+    }
+    if (best == 0) continue;
+    const auto p = TriangulateChecked(
+        options_.camera, checks_, {cfw0, camera_from_world[c.kfs[best]]}, {c.uvs[0], c.uvs[best]});
+    if (!p) continue;
+    NewPoint np{c.id, *p, {}};
+    for (size_t k = 0; k < c.kfs.size(); ++k) {
+      if (ReprojectionErrorSq(options_.camera, camera_from_world[c.kfs[k]], *p, c.uvs[k]) <=
+          max_err_sq) {
+        np.observers.push_back(c.kfs[k]);
+      }
+    }
+    if (np.observers.size() >= 2) created.push_back(std::move(np));
+  }
+  map_->Write([&](MapData& m) {
+    for (const NewPoint& np : created) {
+      m.AddPoint(np.id, np.position, kf_id);
+      for (const KeyframeId o : np.observers) m.AddObservation(np.id, o);
+    }
+  });
+  std::lock_guard<std::mutex> lock(stats_mutex_);
+  stats_.points_created += static_cast<int64_t>(created.size());
+}
+
+void LocalMapper::LocalBundleAdjust(KeyframeId kf_id) {
+  BaProblem problem;
+  map_->Read([&](const MapData& m) {
+    std::vector<KeyframeId> window = {kf_id};
+    for (const auto& [other, shared] : m.Covisible(kf_id, kMinCovisiblePoints)) {
+      if (static_cast<int>(window.size()) >= options_.local_ba_window) break;
+      window.push_back(other);
+    }
+    std::sort(window.begin(), window.end());
+    std::unordered_map<KeyframeId, int> kf_index;
+    for (const KeyframeId id : window) {
+      kf_index[id] = static_cast<int>(problem.keyframes.size());
+      problem.keyframes.push_back({id, m.keyframe(id)->world_from_camera.Inverse(), false});
+    }
+    // Points seen by the window; other observers become fixed keyframes (most shared first).
+    std::vector<VertexId> point_ids;
+    std::unordered_set<VertexId> seen;
+    std::unordered_map<KeyframeId, int> outside;
+    for (const KeyframeId id : window) {
+      const Keyframe* kf = m.keyframe(id);
+      for (const VertexId vid : kf->ids) {
+        const MapPoint* p = m.point(vid);
+        if (p == nullptr || !std::binary_search(p->observers.begin(), p->observers.end(), id))
+          continue;
+        if (!seen.insert(vid).second) continue;
+        point_ids.push_back(vid);
+        for (const KeyframeId o : p->observers) {
+          if (!kf_index.count(o)) ++outside[o];
+        }
+      }
+    }
+    std::vector<std::pair<int, KeyframeId>> fixed;
+    for (const auto& [id, n] : outside) fixed.emplace_back(n, id);
+    std::sort(fixed.begin(), fixed.end(), [](const auto& a, const auto& b) {
+      return a.first != b.first ? a.first > b.first : a.second > b.second;
+    });
+    const size_t max_fixed =
+        static_cast<size_t>(kFixedKeyframesPerWindow * options_.local_ba_window);
+    if (fixed.size() > max_fixed) fixed.resize(max_fixed);
+    std::sort(fixed.begin(), fixed.end(),
+              [](const auto& a, const auto& b) { return a.second < b.second; });
+    for (const auto& [n, id] : fixed) {
+      kf_index[id] = static_cast<int>(problem.keyframes.size());
+      problem.keyframes.push_back({id, m.keyframe(id)->world_from_camera.Inverse(), true});
+    }
+    // Without an outside keyframe, hold the oldest window keyframe (the gauge); keyframe 0 and
+    // its partner stay fixed while they are in the window, so early windows keep the scale.
+    if (fixed.empty() && !problem.keyframes.empty()) problem.keyframes[0].fixed = true;
+    std::sort(point_ids.begin(), point_ids.end());
+    for (const VertexId vid : point_ids) {
+      const MapPoint* p = m.point(vid);
+      const int pi = static_cast<int>(problem.points.size());
+      problem.points.push_back({vid, p->position, false});
+      for (const KeyframeId o : p->observers) {
+        const auto it = kf_index.find(o);
+        if (it == kf_index.end()) continue;
+        problem.observations.push_back({it->second, pi, *m.keyframe(o)->Find(vid)});
+      }
+    }
+  });
+  if (problem.keyframes.size() < 2 || problem.observations.empty()) return;
+  const BundleAdjustmentResult result =
+      BundleAdjust(options_.camera, MakeBaOptions(options_, 10), &problem);
+  {
+    std::lock_guard<std::mutex> lock(stats_mutex_);
+    stats_.last_local_ba_ms = result.solve_ms;
+    stats_.total_local_ba_ms += result.solve_ms;
+  }
+  if (result.success) ApplyBundleAdjustment(problem, result);
+}
+
+void LocalMapper::ApplyBundleAdjustment(const BaProblem& problem,
+                                        const BundleAdjustmentResult& result) {
+  map_->Write([&](MapData& m) {
+    for (const BaKeyframe& kf : problem.keyframes) {
+      if (!kf.fixed && kf.camera_from_world.AllFinite())
+        m.SetKeyframePose(kf.id, kf.camera_from_world.Inverse());
+    }
+    for (const BaPoint& p : problem.points) {
+      if (!p.fixed && p.position_world.allFinite()) m.SetPointPosition(p.id, p.position_world);
+    }
+    for (size_t o = 0; o < problem.observations.size() && o < result.outlier.size(); ++o) {
+      if (!result.outlier[o]) continue;
+      const BaObservation& obs = problem.observations[o];
+      m.RemoveObservation(problem.points[obs.point_index].id,
+                          problem.keyframes[obs.keyframe_index].id);
+    }
+    for (const BaPoint& p : problem.points) {
+      const MapPoint* mp = m.point(p.id);
+      if (mp != nullptr && (mp->observers.size() < 2 || !p.position_world.allFinite()))
+        m.RemovePoint(p.id);
+    }
+  });
+}
+
+void LocalMapper::GlobalBundleAdjust(int max_iterations) {
+  BaProblem problem;
+  map_->Read([&](const MapData& m) {
+    std::unordered_map<KeyframeId, int> kf_index;
+    for (const auto& [id, kf] : m.keyframes()) {
+      kf_index[id] = static_cast<int>(problem.keyframes.size());
+      problem.keyframes.push_back({id, kf.world_from_camera.Inverse(), problem.keyframes.empty()});
+    }
+    std::vector<VertexId> ids;
+    for (const auto& [id, p] : m.points()) ids.push_back(id);
+    std::sort(ids.begin(), ids.end());
+    for (const VertexId vid : ids) {
+      const MapPoint* p = m.point(vid);
+      const int pi = static_cast<int>(problem.points.size());
+      problem.points.push_back({vid, p->position, false});
+      for (const KeyframeId o : p->observers) {
+        problem.observations.push_back({kf_index.at(o), pi, *m.keyframe(o)->Find(vid)});
+      }
+    }
+  });
+  if (problem.keyframes.size() < 2) return;
+  const BundleAdjustmentResult result =
+      BundleAdjust(options_.camera, MakeBaOptions(options_, max_iterations), &problem);
+  if (result.success) ApplyBundleAdjustment(problem, result);
+  std::lock_guard<std::mutex> lock(stats_mutex_);
+  ++stats_.global_bundle_adjustments;
+}
+
+void LocalMapper::CullKeyframes(KeyframeId kf_id) {
+  int culled = 0;
+  map_->Write([&](MapData& m) {
+    if (m.keyframes().size() < 3) return;
+    const KeyframeId first = m.keyframes().begin()->first;
+    auto remove = [&](KeyframeId id) {
+      const Keyframe* kf = m.keyframe(id);
+      std::optional<KeyframeLink> link;
+      for (const auto& [other, shared] : m.Covisible(id, 1)) {
+        link = KeyframeLink{other,
+                            m.keyframe(other)->world_from_camera.Inverse() * kf->world_from_camera};
+        break;
+      }
+      if (!link) {
+        // No covisible keyframe: link to the previous one by id.
+        auto it = m.keyframes().find(id);
+        const auto& prev =
+            it == m.keyframes().begin() ? std::next(it)->second : std::prev(it)->second;
+        link = KeyframeLink{prev.id, prev.world_from_camera.Inverse() * kf->world_from_camera};
+      }
+      std::vector<VertexId> touched;
+      for (const VertexId vid : kf->ids) {
+        if (m.point(vid) != nullptr) touched.push_back(vid);
+      }
+      m.RemoveKeyframe(id, link);
+      for (const VertexId vid : touched) {
+        const MapPoint* p = m.point(vid);
+        if (p != nullptr && p->observers.size() < 2) m.RemovePoint(vid);
+      }
+      ++culled;
+    };
+    std::vector<KeyframeId> neighbours;
+    for (const auto& [other, shared] : m.Covisible(kf_id, kMinCovisiblePoints)) {
+      if (static_cast<int>(neighbours.size()) >= options_.local_ba_window) break;
+      neighbours.push_back(other);
+    }
+    for (const KeyframeId id : neighbours) {
+      if (id == first || id == kf_id) continue;
+      const Keyframe* kf = m.keyframe(id);
+      int observed = 0, redundant = 0;
+      for (const VertexId vid : kf->ids) {
+        const MapPoint* p = m.point(vid);
+        if (p == nullptr || !std::binary_search(p->observers.begin(), p->observers.end(), id))
+          continue;
+        ++observed;
+        if (static_cast<int>(p->observers.size()) - 1 >= kRedundancyObservers) ++redundant;
+      }
+      if (observed > 0 && redundant >= options_.keyframe_redundancy * observed) remove(id);
+    }
+    // Bounded map: beyond max_keyframes, the oldest keyframes (but the first) go.
+    while (static_cast<int>(m.keyframes().size()) > options_.max_keyframes) {
+      const KeyframeId oldest = std::next(m.keyframes().begin())->first;
+      if (oldest == kf_id) break;
+      remove(oldest);
+    }
+  });
+  if (culled > 0) {
+    std::lock_guard<std::mutex> lock(stats_mutex_);
+    stats_.keyframes_culled += culled;
+  }
+}
+
+}  // namespace m2s::slam

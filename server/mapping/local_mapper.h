@@ -1,0 +1,66 @@
+// Local mapping: inserts the keyframes tracking hands over, triangulates new points from ids
+// seen in two or more keyframes, runs the local bundle adjustment over the covisible window
+// (other keyframes observing the window's points held fixed), culls outlier observations,
+// unsupported points and redundant keyframes, and asks the drift corrector to close loops.
+//
+// Thread-safety: one mapper, called from one thread (the mapping thread, or inline in
+// deterministic mode); it is the map's only writer while tracking runs.
+//
+//   LocalMapper mapper(options, &map);
+//   mapper.InsertInitialMap(initial, kf0, kf1);
+//   mapper.Process(candidate);   // per keyframe
+#pragma once
+
+#include <atomic>
+#include <memory>
+#include <vector>
+
+#include "m2s/slam/system.h"
+#include "map/map.h"
+#include "mapping/drift_corrector.h"
+#include "mapping/triangulation.h"
+#include "optimization/problems.h"
+#include "tracking/initializer.h"
+#include "tracking/tracker.h"
+
+namespace m2s::slam {
+
+struct MappingStats {
+  int64_t keyframes_processed = 0;
+  int64_t points_created = 0;
+  int64_t keyframes_culled = 0;
+  int64_t loop_corrections = 0;
+  int64_t global_bundle_adjustments = 0;
+  double last_local_ba_ms = 0.0;
+  double total_local_ba_ms = 0.0;
+};
+
+class LocalMapper {
+ public:
+  LocalMapper(const Options& options, Map* map);
+
+  // Writes the two initial keyframes and their points (ids reserved by the caller).
+  void InsertInitialMap(const InitialMap& initial, KeyframeId first, KeyframeId second);
+  // Processes one keyframe: insert, drift check, triangulate, local BA, cull.
+  void Process(const KeyframeCandidate& candidate);
+  // Bundle adjustment of the whole map (first keyframe fixed).
+  void GlobalBundleAdjust(int max_iterations);
+
+  MappingStats stats() const;
+
+ private:
+  void TriangulateNewPoints(KeyframeId kf_id);
+  void LocalBundleAdjust(KeyframeId kf_id);
+  void CullKeyframes(KeyframeId kf_id);
+  // Applies a solved BA problem: poses, positions, outlier observations, unsupported points.
+  void ApplyBundleAdjustment(const BaProblem& problem, const BundleAdjustmentResult& result);
+
+  Options options_;
+  Map* map_;
+  TriangulationChecks checks_;
+  DriftCorrector drift_;
+  mutable std::mutex stats_mutex_;
+  MappingStats stats_;
+};
+
+}  // namespace m2s::slam

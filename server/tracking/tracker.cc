@@ -1,0 +1,253 @@
+#include "tracking/tracker.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <opencv2/calib3d.hpp>
+#include <opencv2/core/eigen.hpp>
+
+#include "optimization/problems.h"
+
+namespace m2s::slam {
+namespace {
+
+constexpr int kMaxPnpPoints = 500;  // RANSAC input, subsampled evenly beyond this
+constexpr int kPnpIterations = 200;
+constexpr double kPnpThresholdSigmas = 4.0;
+// Keyframes for unmapped features need some baseline (fraction of keyframe_baseline_ratio),
+// or the same features would ask for a keyframe on every frame.
+constexpr double kNewPointsBaselineFraction = 0.25;
+
+PoseOnlyOptions MakePoseOptions(const Options& options) {
+  PoseOnlyOptions p;
+  p.pixel_sigma = options.pixel_sigma;
+  p.huber_delta_px = std::sqrt(5.991) * options.pixel_sigma;
+  return p;
+}
+
+}  // namespace
+
+Tracker::Tracker(const Options& options, Map* map) : options_(options), map_(map) {}
+
+void Tracker::Start(KeyframeId keyframe, const Pose3& world_from_camera, int num_points,
+                    double timestamp, double median_depth) {
+  started_ = true;
+  lost_ = false;
+  last_camera_from_world_ = world_from_camera.Inverse();
+  velocity_ = Pose3::Identity();
+  correction_epoch_ = map_->correction().epoch;
+  reference_kf_ = keyframe;
+  reference_world_from_camera_ = world_from_camera;
+  reference_points_ = num_points;
+  last_keyframe_time_ = timestamp;
+  last_keyframe_median_depth_ = median_depth;
+}
+
+void Tracker::StartLost() {
+  Reset();
+  started_ = true;
+  lost_ = true;
+  correction_epoch_ = map_->correction().epoch;
+}
+
+void Tracker::Reset() {
+  started_ = false;
+  lost_ = false;
+  velocity_ = Pose3::Identity();
+  reference_kf_.reset();
+  reference_points_ = 0;
+}
+
+void Tracker::Associate(const SortedFeatures& features, Association* a) const {
+  const KeyframeId newest = reference_kf_.value_or(0);
+  const int gap = options_.loop_min_keyframe_gap;
+  map_->Read([&](const MapData& m) {
+    for (size_t i = 0; i < features.size(); ++i) {
+      const MapPoint* p = m.point(features.ids[i]);
+      if (p == nullptr) {
+        if (m.KeyframesWithFeature(features.ids[i]) != nullptr) ++a->num_new_triangulable;
+        continue;
+      }
+      if (p->observers.empty()) continue;
+      const bool dormant =
+          reference_kf_ &&
+          static_cast<int64_t>(newest) - static_cast<int64_t>(p->last_observer()) > gap;
+      a->ids.push_back(p->id);
+      a->points.push_back(p->position);
+      a->uvs.push_back(features.uvs[i]);
+      a->dormant.push_back(dormant);
+      a->num_dormant += dormant ? 1 : 0;
+    }
+    if (reference_kf_) {
+      if (const Keyframe* kf = m.keyframe(*reference_kf_)) {
+        a->reference_pose = kf->world_from_camera;
+        a->reference_points = kf->num_points;
+      } else {
+        a->reference_pose = m.ResolveKeyframePose(*reference_kf_);
+      }
+    }
+  });
+}
+
+bool Tracker::TrackWithModel(const Association& a, Pose3* camera_from_world,
+                             std::vector<bool>* inlier) {
+  // Dormant points (mapped long ago) may carry the drift not yet corrected: track on the
+  // recent ones when there are enough, and let mapping close the loop.
+  const int num_active = static_cast<int>(a.ids.size()) - a.num_dormant;
+  const bool skip_dormant = a.num_dormant > 0 && num_active >= 2 * options_.min_tracked_points;
+  std::vector<Eigen::Vector3d> points;
+  std::vector<Eigen::Vector2d> uvs;
+  std::vector<int> index;
+  points.reserve(a.ids.size());
+  uvs.reserve(a.ids.size());
+  index.reserve(a.ids.size());
+  for (size_t i = 0; i < a.ids.size(); ++i) {
+    if (skip_dormant && a.dormant[i]) continue;
+    points.push_back(a.points[i]);
+    uvs.push_back(a.uvs[i]);
+    index.push_back(static_cast<int>(i));
+  }
+  if (static_cast<int>(points.size()) < options_.min_tracked_points) return false;
+  Pose3 pose = velocity_ * last_camera_from_world_;
+  const PoseOnlyResult r =
+      OptimizePose(options_.camera, MakePoseOptions(options_), points, uvs, &pose);
+  if (!pose.AllFinite() || r.num_inliers < options_.min_tracked_points) return false;
+  inlier->assign(a.ids.size(), false);
+  for (size_t k = 0; k < index.size(); ++k) (*inlier)[index[k]] = r.inlier[k];
+  *camera_from_world = pose;
+  return true;
+}
+
+bool Tracker::Relocalise(const Association& a, Pose3* camera_from_world,
+                         std::vector<bool>* inlier) {
+  const int n = static_cast<int>(a.ids.size());
+  if (n < options_.min_tracked_points) return false;
+  std::vector<cv::Point3d> object;
+  std::vector<cv::Point2d> image;
+  const double step = std::max(1.0, static_cast<double>(n) / kMaxPnpPoints);
+  for (double k = 0; k < n; k += step) {
+    const int i = static_cast<int>(k);
+    object.emplace_back(a.points[i].x(), a.points[i].y(), a.points[i].z());
+    image.emplace_back(a.uvs[i].x(), a.uvs[i].y());
+  }
+  cv::Mat k_cv, rvec, tvec;
+  cv::eigen2cv(options_.camera.K(), k_cv);
+  std::vector<int> pnp_inliers;
+  const bool ok = cv::solvePnPRansac(object, image, k_cv, cv::noArray(), rvec, tvec, false,
+                                     kPnpIterations, kPnpThresholdSigmas * options_.pixel_sigma,
+                                     0.999, pnp_inliers, cv::SOLVEPNP_AP3P);
+  if (!ok || static_cast<int>(pnp_inliers.size()) < options_.min_tracked_points / 2) return false;
+  cv::Mat r_cv;
+  cv::Rodrigues(rvec, r_cv);
+  Eigen::Matrix3d r;
+  Eigen::Vector3d t;
+  cv::cv2eigen(r_cv, r);
+  cv::cv2eigen(tvec, t);
+  Pose3 pose(r, t);
+  const PoseOnlyResult refined =
+      OptimizePose(options_.camera, MakePoseOptions(options_), a.points, a.uvs, &pose);
+  if (!pose.AllFinite() || refined.num_inliers < options_.min_tracked_points) return false;
+  *inlier = refined.inlier;
+  *camera_from_world = pose;
+  return true;
+}
+
+bool Tracker::NeedKeyframe(const Association& a, int num_inliers, const Pose3& world_from_camera,
+                           double timestamp, bool loop_candidate) const {
+  if (loop_candidate) return true;
+  const int reference_points = a.reference_points >= 0 ? a.reference_points : reference_points_;
+  if (num_inliers < options_.keyframe_tracked_ratio * reference_points) return true;
+  if (timestamp - last_keyframe_time_ > options_.keyframe_max_interval_s) return true;
+  const double baseline =
+      (world_from_camera.translation() - reference_world_from_camera_.translation()).norm() /
+      std::max(last_keyframe_median_depth_, 1e-9);
+  if (baseline > options_.keyframe_baseline_ratio) return true;
+  return a.num_new_triangulable >= options_.keyframe_min_new_points &&
+         baseline > kNewPointsBaselineFraction * options_.keyframe_baseline_ratio;
+}
+
+TrackerOutput Tracker::Track(int64_t seq, double timestamp, const SortedFeatures& features,
+                             bool mapping_accepts_keyframes) {
+  TrackerOutput out;
+  // Drift correction moved the world: carry the last pose into the corrected world.
+  const WorldCorrection correction = map_->correction();
+  if (correction.epoch != correction_epoch_) {
+    correction_epoch_ = correction.epoch;
+    const Pose3 world_from_camera =
+        correction.new_from_old.TransformPose(last_camera_from_world_.Inverse());
+    last_camera_from_world_ = world_from_camera.Inverse();
+    velocity_ =
+        Pose3(velocity_.rotation(), velocity_.translation() * correction.new_from_old.scale());
+    reference_world_from_camera_ =
+        correction.new_from_old.TransformPose(reference_world_from_camera_);
+    last_keyframe_median_depth_ *= correction.new_from_old.scale();
+  }
+
+  Association a;
+  Associate(features, &a);
+  Pose3 camera_from_world;
+  std::vector<bool> inlier;
+  bool ok = false;
+  if (!lost_) ok = TrackWithModel(a, &camera_from_world, &inlier);
+  bool relocalised = false;
+  if (!ok) {
+    ok = Relocalise(a, &camera_from_world, &inlier);
+    relocalised = ok && lost_;
+  }
+  if (!ok) {
+    lost_ = true;
+    out.state = TrackingState::kLost;
+    velocity_ = Pose3::Identity();
+    return out;
+  }
+  velocity_ = lost_ ? Pose3::Identity() : camera_from_world * last_camera_from_world_.Inverse();
+  lost_ = false;
+  last_camera_from_world_ = camera_from_world;
+  out.state = relocalised ? TrackingState::kRelocalized : TrackingState::kOk;
+  out.world_from_camera = camera_from_world.Inverse();
+  int num_inliers = 0;
+  int dormant_inliers = 0;
+  for (size_t i = 0; i < inlier.size(); ++i) num_inliers += inlier[i] ? 1 : 0;
+  for (size_t i = 0; i < a.ids.size(); ++i) dormant_inliers += a.dormant[i] ? 1 : 0;
+  out.num_inliers = num_inliers;
+  if (reference_kf_ && a.reference_pose) {
+    out.reference_keyframe = reference_kf_;
+    out.reference_from_camera = a.reference_pose->Inverse() * out.world_from_camera;
+  }
+
+  const bool loop_candidate =
+      options_.drift_correction && dormant_inliers >= options_.loop_min_points;
+  if (options_.localization_only || !mapping_accepts_keyframes || relocalised ||
+      !NeedKeyframe(a, num_inliers, out.world_from_camera, timestamp, loop_candidate)) {
+    return out;
+  }
+  KeyframeCandidate kf;
+  kf.id = map_->NextKeyframeId();
+  kf.seq = seq;
+  kf.timestamp = timestamp;
+  kf.world_from_camera = out.world_from_camera;
+  kf.features = features;
+  std::vector<double> depths;
+  for (size_t i = 0; i < a.ids.size(); ++i) {
+    if (a.dormant[i]) {
+      kf.dormant_points.push_back(a.ids[i]);
+    } else if (inlier[i]) {
+      kf.tracked_points.push_back(a.ids[i]);
+      depths.push_back((camera_from_world * a.points[i]).z());
+    }
+  }
+  if (!depths.empty()) {
+    std::nth_element(depths.begin(), depths.begin() + depths.size() / 2, depths.end());
+    last_keyframe_median_depth_ = depths[depths.size() / 2];
+  }
+  reference_kf_ = kf.id;
+  reference_world_from_camera_ = kf.world_from_camera;
+  reference_points_ = static_cast<int>(kf.tracked_points.size());
+  last_keyframe_time_ = timestamp;
+  out.reference_keyframe = kf.id;
+  out.reference_from_camera = Pose3::Identity();
+  out.keyframe = std::move(kf);
+  return out;
+}
+
+}  // namespace m2s::slam

@@ -1,0 +1,95 @@
+// Frame-to-map tracking after initialisation: constant-velocity prediction, association to
+// map points by vertex id (exact), pose-only optimisation with outlier rejection, the tracking
+// state machine (ok / lost / relocalised: PnP + RANSAC against every map point seen), and the
+// keyframe decision.
+//
+// Thread-safety: one tracker per tracking thread; it only reads the map (and reserves keyframe
+// ids), so it runs concurrently with mapping.
+//
+//   Tracker tracker(options, &map);
+//   tracker.Start(initial_map_keyframe, ...);
+//   TrackerOutput out = tracker.Track(seq, timestamp, features, /*mapping_accepts=*/true);
+#pragma once
+
+#include <optional>
+#include <vector>
+
+#include "m2s/slam/system.h"
+#include "map/map.h"
+#include "tracking/frame_validation.h"
+
+namespace m2s::slam {
+
+// A new keyframe, as tracking hands it to mapping.
+struct KeyframeCandidate {
+  KeyframeId id = 0;
+  int64_t seq = 0;
+  double timestamp = 0.0;
+  Pose3 world_from_camera;
+  SortedFeatures features;
+  std::vector<VertexId> tracked_points;  // map points that were pose inliers
+  std::vector<VertexId> dormant_points;  // map points re-observed after a long gap
+};
+
+struct TrackerOutput {
+  TrackingState state = TrackingState::kLost;
+  Pose3 world_from_camera;
+  int num_inliers = 0;
+  // The keyframe the pose is relative to, for trajectory refinement (absent when none).
+  std::optional<KeyframeId> reference_keyframe;
+  Pose3 reference_from_camera;
+  std::optional<KeyframeCandidate> keyframe;
+};
+
+class Tracker {
+ public:
+  Tracker(const Options& options, Map* map);
+
+  // Starts tracking after initialisation from the newest keyframe.
+  void Start(KeyframeId keyframe, const Pose3& world_from_camera, int num_points, double timestamp,
+             double median_depth);
+  // Starts in the lost state (after loading a map): the next frame relocalises.
+  void StartLost();
+  void Reset();
+  // Localisation only: never proposes keyframes.
+  void SetLocalizationOnly(bool on) { options_.localization_only = on; }
+
+  TrackerOutput Track(int64_t seq, double timestamp, const SortedFeatures& features,
+                      bool mapping_accepts_keyframes);
+
+  bool started() const { return started_; }
+  bool lost() const { return lost_; }
+
+ private:
+  struct Association {
+    std::vector<VertexId> ids;
+    std::vector<Eigen::Vector3d> points;
+    std::vector<Eigen::Vector2d> uvs;
+    std::vector<bool> dormant;
+    int num_dormant = 0;
+    int num_new_triangulable = 0;  // unmapped features already seen by a keyframe
+    std::optional<Pose3> reference_pose;
+    int reference_points = -1;
+  };
+  void Associate(const SortedFeatures& features, Association* a) const;
+  bool TrackWithModel(const Association& a, Pose3* camera_from_world, std::vector<bool>* inlier);
+  bool Relocalise(const Association& a, Pose3* camera_from_world, std::vector<bool>* inlier);
+  bool NeedKeyframe(const Association& a, int num_inliers, const Pose3& world_from_camera,
+                    double timestamp, bool loop_candidate) const;
+
+  Options options_;
+  Map* map_;
+  bool started_ = false;
+  bool lost_ = false;
+  Pose3 last_camera_from_world_;
+  Pose3 velocity_;  // camera_from_world(t) * camera_from_world(t-1)^-1
+  uint64_t correction_epoch_ = 0;
+  // Reference keyframe: the newest one created by this tracker (or loaded).
+  std::optional<KeyframeId> reference_kf_;
+  Pose3 reference_world_from_camera_;
+  int reference_points_ = 0;
+  double last_keyframe_time_ = 0.0;
+  double last_keyframe_median_depth_ = 1.0;
+};
+
+}  // namespace m2s::slam

@@ -1,0 +1,126 @@
+// Synthetic SLAM sequences for the server tests: the default scene seen along generated head
+// motion through the CPU projector (exact ground truth), optionally degraded, and a Sim3
+// aligned ATE computed independently of the library (Umeyama on camera centres).
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "m2s/common/alignment.h"
+#include "m2s/common/cpu_projector.h"
+#include "m2s/common/feature_noise.h"
+#include "m2s/common/scene.h"
+#include "m2s/common/trajectory.h"
+#include "m2s/slam/system.h"
+
+namespace m2s::slam::testing {
+
+struct SimOptions {
+  double duration_s = 20.0;
+  double fps = 30.0;
+  uint64_t seed = 1;
+  int budget = 1000;  // features per frame (grid spread); 0: all visible vertices
+  double pixel_noise_sigma = 0.0;
+  double wrong_id_fraction = 0.0;
+  bool occlusion = true;
+};
+
+struct SimSequence {
+  Camera camera;
+  Trajectory ground_truth;
+  std::vector<Frame> frames;
+  Scene scene;
+};
+
+inline const Scene& DefaultScene() {
+  static const Scene scene = MakeDefaultScene();
+  return scene;
+}
+
+// Projects `scene` from every pose of `trajectory` (poses at their own timestamps).
+inline std::vector<Frame> ProjectFrames(const Scene& scene, const Trajectory& trajectory,
+                                        const Camera& camera, const SimOptions& options) {
+  ProjectorOptions popts;
+  popts.occlusion = options.occlusion;
+  popts.num_threads = 1;
+  auto projector = CpuProjector::Create(scene, popts);
+  EXPECT_TRUE(projector.ok()) << projector.error();
+  FeatureNoiseOptions noise;
+  noise.pixel_noise_sigma = options.pixel_noise_sigma;
+  noise.wrong_id_fraction = options.wrong_id_fraction;
+  noise.budget = options.budget;
+  noise.seed = options.seed;
+  std::vector<Frame> frames;
+  std::vector<ProjectedVertex> projected;
+  for (size_t i = 0; i < trajectory.size(); ++i) {
+    const Pose3& pose = trajectory[i].world_from_camera;
+    EXPECT_TRUE((*projector)->Project(pose, camera, &projected).ok());
+    if (noise.Enabled()) {
+      ApplyFeatureNoise(noise, camera, static_cast<uint32_t>(scene.num_vertices()), i, &projected);
+    }
+    Frame f;
+    f.seq = static_cast<int64_t>(i);
+    f.timestamp = trajectory[i].timestamp;
+    f.ground_truth_world_from_camera = pose;
+    f.features.reserve(projected.size());
+    for (const ProjectedVertex& v : projected)
+      f.features.push_back({v.id, Eigen::Vector2f(v.u, v.v)});
+    frames.push_back(std::move(f));
+  }
+  return frames;
+}
+
+inline SimSequence MakeSequence(const SimOptions& options) {
+  SimSequence s;
+  s.camera = Camera();
+  HeadMotionOptions motion = DefaultHeadMotionOptions();
+  motion.duration_s = options.duration_s;
+  motion.rate_hz = options.fps;
+  motion.seed = options.seed;
+  auto trajectory = GenerateHeadMotion(motion);
+  EXPECT_TRUE(trajectory.ok()) << trajectory.error();
+  s.ground_truth = *trajectory;
+  s.frames = ProjectFrames(DefaultScene(), s.ground_truth, s.camera, options);
+  return s;
+}
+
+struct AteResult {
+  double rmse = INFINITY;
+  size_t num_poses = 0;
+  Sim3 truth_from_estimate;
+};
+
+// Sim3-aligned ATE over the tracked entries (kOk / kRelocalized) that carry ground truth.
+inline AteResult ComputeAte(const std::vector<TrajectoryEntry>& trajectory) {
+  std::vector<Eigen::Vector3d> est, truth;
+  for (const TrajectoryEntry& e : trajectory) {
+    if ((e.state != TrackingState::kOk && e.state != TrackingState::kRelocalized) ||
+        !e.ground_truth_world_from_camera) {
+      continue;
+    }
+    est.push_back(e.world_from_camera.translation());
+    truth.push_back(e.ground_truth_world_from_camera->translation());
+  }
+  AteResult r;
+  r.num_poses = est.size();
+  const auto s = AlignPoints(est, truth, /*with_scale=*/true);
+  if (!s) return r;
+  double sse = 0.0;
+  for (size_t i = 0; i < est.size(); ++i) sse += ((*s) * est[i] - truth[i]).squaredNorm();
+  r.rmse = std::sqrt(sse / static_cast<double>(est.size()));
+  r.truth_from_estimate = *s;
+  return r;
+}
+
+inline Options DefaultOptions(const Camera& camera) {
+  Options o;
+  o.camera = camera;
+  o.deterministic = true;
+  return o;
+}
+
+}  // namespace m2s::slam::testing
