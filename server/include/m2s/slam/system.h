@@ -156,7 +156,7 @@ struct Options {
   // current estimate by more than loop_min_error (fraction of the median depth).
   int loop_min_points = 30;
   int loop_min_keyframe_gap = 15;
-  double loop_min_error = 0.002;
+  double loop_min_error = 0.01;
 
   bool Check(std::string* why) const;
 };
