@@ -4,6 +4,7 @@
 #include <fstream>
 #include <string>
 #include <system_error>
+#include <vector>
 
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
@@ -43,21 +44,82 @@ struct Loader {
     for (unsigned int f = 0; f < mesh.mNumFaces; ++f) {
       const aiFace& face = mesh.mFaces[f];
       for (unsigned int c = 0; c < face.mNumIndices; ++c) id_of(face.mIndices[c]);
-      if (face.mNumIndices == 3) {
-        builder.AddTriangle(ids[face.mIndices[0]], ids[face.mIndices[1]], ids[face.mIndices[2]]);
+      // Polygons left by the triangulation (a mesh whose primitive flags hide them): a fan.
+      for (unsigned int c = 2; c < face.mNumIndices; ++c) {
+        builder.AddTriangle(ids[face.mIndices[0]], ids[face.mIndices[c - 1]],
+                            ids[face.mIndices[c]]);
       }
     }
     for (unsigned int v = 0; v < mesh.mNumVertices; ++v) id_of(v);
   }
 
-  void AddNode(const aiNode& node, const aiMatrix4x4& parent) {
-    const aiMatrix4x4 transform = parent * node.mTransformation;
-    for (unsigned int m = 0; m < node.mNumMeshes; ++m) {
-      AddMesh(transform, *ai.mMeshes[node.mMeshes[m]]);
+  // Depth-first from the root, children in order, with accumulated transforms. Iterative, so a
+  // deep hierarchy cannot overflow the stack; bounded, so a malformed cyclic one cannot hang.
+  bool AddNodes(const aiNode& root) {
+    constexpr size_t kMaxNodeVisits = size_t{1} << 24;
+    struct Item {
+      const aiNode* node;
+      aiMatrix4x4 parent;
+    };
+    std::vector<Item> stack = {{&root, aiMatrix4x4()}};
+    for (size_t visits = 0; !stack.empty(); ++visits) {
+      if (visits >= kMaxNodeVisits) return false;
+      const Item item = stack.back();
+      stack.pop_back();
+      const aiMatrix4x4 transform = item.parent * item.node->mTransformation;
+      for (unsigned int m = 0; m < item.node->mNumMeshes; ++m) {
+        AddMesh(transform, *ai.mMeshes[item.node->mMeshes[m]]);
+      }
+      for (unsigned int c = item.node->mNumChildren; c-- > 0;) {
+        stack.push_back({item.node->mChildren[c], transform});
+      }
     }
-    for (unsigned int c = 0; c < node.mNumChildren; ++c) AddNode(*node.mChildren[c], transform);
+    return true;
   }
 };
+
+// What assimp's ValidateDataStructure checks and we rely on, without its rule that every mesh
+// has faces (point clouds are valid scenes here). Returns an empty string when valid.
+std::string Validate(const aiScene& ai) {
+  if (ai.mNumMeshes > 0 && ai.mMeshes == nullptr) return "mesh array missing";
+  for (unsigned int m = 0; m < ai.mNumMeshes; ++m) {
+    const aiMesh* mesh = ai.mMeshes[m];
+    if (mesh == nullptr) return "mesh " + std::to_string(m) + " missing";
+    if (mesh->mNumVertices > 0 && mesh->mVertices == nullptr) {
+      return "mesh " + std::to_string(m) + " has no vertex array";
+    }
+    if (mesh->mNumFaces > 0 && mesh->mFaces == nullptr) {
+      return "mesh " + std::to_string(m) + " has no face array";
+    }
+    for (unsigned int f = 0; f < mesh->mNumFaces; ++f) {
+      const aiFace& face = mesh->mFaces[f];
+      if (face.mNumIndices == 0 || face.mIndices == nullptr) {
+        return "mesh " + std::to_string(m) + " face " + std::to_string(f) + " has no indices";
+      }
+      for (unsigned int c = 0; c < face.mNumIndices; ++c) {
+        if (face.mIndices[c] >= mesh->mNumVertices) {
+          return "mesh " + std::to_string(m) + " face " + std::to_string(f) +
+                 " indexes a vertex out of range";
+        }
+      }
+    }
+  }
+  std::vector<const aiNode*> stack = {ai.mRootNode};
+  for (size_t visits = 0; !stack.empty(); ++visits) {
+    if (visits >= (size_t{1} << 24)) return "node hierarchy too large or cyclic";
+    const aiNode* node = stack.back();
+    stack.pop_back();
+    if (node == nullptr) return "null node in the hierarchy";
+    for (unsigned int k = 0; k < node->mNumMeshes; ++k) {
+      if (node->mMeshes == nullptr || node->mMeshes[k] >= ai.mNumMeshes) {
+        return "node '" + std::string(node->mName.C_Str()) + "' refers to a missing mesh";
+      }
+    }
+    if (node->mNumChildren > 0 && node->mChildren == nullptr) return "node children missing";
+    for (unsigned int c = 0; c < node->mNumChildren; ++c) stack.push_back(node->mChildren[c]);
+  }
+  return "";
+}
 
 std::string Lower(std::string s) {
   for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
@@ -97,9 +159,9 @@ Expected<Scene> LoadScene(const std::string& path, const SceneLoadOptions& optio
 
   Assimp::Importer importer;
   const std::string extension = Lower(fs_path.extension().string());
-  // Only triangulation and validation: neither reorders faces nor joins vertices.
-  const aiScene* ai =
-      importer.ReadFile(path, aiProcess_Triangulate | aiProcess_ValidateDataStructure);
+  // Import without post-processing, validate, then triangulate only: no step that reorders
+  // faces or joins vertices.
+  const aiScene* ai = importer.ReadFile(path, 0);
   if (ai == nullptr) {
     if (extension.empty() || !importer.IsExtensionSupported(extension)) {
       return Expected<Scene>::Error(where + "unsupported format '" + extension +
@@ -110,12 +172,21 @@ Expected<Scene> LoadScene(const std::string& path, const SceneLoadOptions& optio
   if (ai->mRootNode == nullptr || ai->mNumMeshes == 0) {
     return Expected<Scene>::Error(where + "no vertices (the file has no meshes)");
   }
+  if (const std::string invalid = Validate(*ai); !invalid.empty()) {
+    return Expected<Scene>::Error(where + "invalid data: " + invalid);
+  }
+  ai = importer.ApplyPostProcessing(aiProcess_Triangulate);
+  if (ai == nullptr) {
+    return Expected<Scene>::Error(where + "triangulation failed: " + importer.GetErrorString());
+  }
 
   Loader loader{*ai,
                 options.scale * options.rotation.normalized().toRotationMatrix(),
                 options.translation,
                 {}};
-  loader.AddNode(*ai->mRootNode, aiMatrix4x4());
+  if (!loader.AddNodes(*ai->mRootNode)) {
+    return Expected<Scene>::Error(where + "node hierarchy too large or cyclic");
+  }
   if (loader.non_finite) return Expected<Scene>::Error(where + "non-finite vertex positions");
   if (loader.builder.num_vertices() == 0) {
     return Expected<Scene>::Error(where + "no vertices (meshes are empty or not used by any node)");
