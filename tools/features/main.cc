@@ -21,6 +21,7 @@
 #include "m2s/common/feature_noise.h"
 #include "m2s/common/scene.h"
 #include "m2s/common/trajectory.h"
+#include "m2s/gpu/projector_factory.h"
 
 namespace m2s {
 namespace {
@@ -38,6 +39,7 @@ struct Args {
   double near = 0.05;
   double far = 50.0;
   ProjectorOptions projector;
+  std::string projector_kind = "cpu";  // --projector cpu|gpu
   FeatureNoiseOptions noise;
   std::optional<uint64_t> frame_index;
   std::string out;
@@ -78,12 +80,13 @@ Expected<Camera> MakeCamera(const Args& args) {
   return camera;
 }
 
-// The projector this tool uses; the one place to change to offer another implementation.
+// The projector this tool uses: CPU or GPU (a headless EGL context of its own), by --projector.
 Expected<std::unique_ptr<Projector>> MakeFeatureProjector(const Scene& scene,
+                                                          const std::string& kind_name,
                                                           const ProjectorOptions& options) {
-  auto cpu = CpuProjector::Create(scene, options);
-  if (!cpu) return cpu.status();
-  return std::unique_ptr<Projector>(std::move(*cpu));
+  Expected<ProjectorKind> kind = ParseProjectorKind(kind_name);
+  if (!kind) return kind.status();
+  return MakeProjector(*kind, scene, options, /*context=*/nullptr);
 }
 
 struct Frame {
@@ -168,7 +171,7 @@ Status Run(const Args& args) {
   Expected<Camera> camera = MakeCamera(args);
   if (!camera) return camera.status();
 
-  Expected<std::unique_ptr<Projector>> projector = MakeFeatureProjector(scene, args.projector);
+  Expected<std::unique_ptr<Projector>> projector = MakeFeatureProjector(scene, args.projector_kind, args.projector);
   if (!projector) return projector.status();
   std::vector<ProjectedVertex> features;
   Status projected = (*projector)->Project(frame->world_from_camera, *camera, &features);
@@ -209,6 +212,9 @@ int main(int argc, char** argv) {
   auto* near = app.add_option("--near", args.near, "Near depth (m)")->capture_default_str();
   auto* far = app.add_option("--far", args.far, "Far depth (m)")->capture_default_str();
   for (CLI::Option* o : {width, height, fov, near, far}) camera->excludes(o);
+  app.add_option("--projector", args.projector_kind, "Projector: cpu or gpu (GLES 3.1 via EGL)")
+      ->check(CLI::IsMember({"cpu", "gpu"}))
+      ->capture_default_str();
   app.add_flag("--occlusion", args.projector.occlusion,
                "Drop vertices hidden behind nearer triangles");
   app.add_option("--occlusion-scale", args.projector.occlusion_resolution_scale,
