@@ -171,7 +171,8 @@ Status Run(const Args& args) {
   Expected<Camera> camera = MakeCamera(args);
   if (!camera) return camera.status();
 
-  Expected<std::unique_ptr<Projector>> projector = MakeFeatureProjector(scene, args.projector_kind, args.projector);
+  Expected<std::unique_ptr<Projector>> projector =
+      MakeFeatureProjector(scene, args.projector_kind, args.projector);
   if (!projector) return projector.status();
   std::vector<ProjectedVertex> features;
   Status projected = (*projector)->Project(frame->world_from_camera, *camera, &features);
