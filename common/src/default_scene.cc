@@ -131,7 +131,10 @@ class RoomBuilder {
     }
   }
 
-  Scene Build() && { return std::move(builder_).Build("default_room"); }
+  Scene Build() && {
+    builder_.Canonicalize();
+    return std::move(builder_).Build("default_room");
+  }
 
  private:
   void Quad(VertexId a, VertexId b, VertexId c, VertexId d, bool flip) {

@@ -159,14 +159,14 @@ Expected<Scene> LoadScene(const std::string& path, const SceneLoadOptions& optio
 
   Assimp::Importer importer;
   const std::string extension = Lower(fs_path.extension().string());
+  // By extension only: assimp would otherwise sniff the content, slowly and by guesswork.
+  if (extension.empty() || !importer.IsExtensionSupported(extension)) {
+    return Expected<Scene>::Error(where + "unsupported format '" + extension + "'");
+  }
   // Import without post-processing, validate, then triangulate only: no step that reorders
   // faces or joins vertices.
   const aiScene* ai = importer.ReadFile(path, 0);
   if (ai == nullptr) {
-    if (extension.empty() || !importer.IsExtensionSupported(extension)) {
-      return Expected<Scene>::Error(where + "unsupported format '" + extension +
-                                    "' (assimp: " + importer.GetErrorString() + ")");
-    }
     return Expected<Scene>::Error(where + "cannot be parsed: " + importer.GetErrorString());
   }
   if (ai->mRootNode == nullptr || ai->mNumMeshes == 0) {

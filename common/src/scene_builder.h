@@ -32,6 +32,24 @@ class SceneBuilder {
   }
   size_t num_vertices() const { return positions_.size(); }
 
+  // Renumbers ids into LoadScene order: first use in triangle order, then unused vertices.
+  void Canonicalize() {
+    constexpr VertexId kUnset = ~VertexId{0};
+    std::vector<VertexId> new_id(positions_.size(), kUnset);
+    VertexId next = 0;
+    for (uint32_t& index : triangles_) {
+      if (new_id[index] == kUnset) new_id[index] = next++;
+      index = new_id[index];
+    }
+    for (VertexId& id : new_id) {
+      if (id == kUnset) id = next++;
+    }
+    std::vector<Eigen::Vector3f> positions(positions_.size());
+    for (size_t i = 0; i < positions_.size(); ++i) positions[new_id[i]] = positions_[i];
+    positions_ = std::move(positions);
+    ids_.clear();
+  }
+
   Scene Build(std::string name) && {
     Scene scene;
     scene.name = std::move(name);
