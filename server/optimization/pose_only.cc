@@ -61,20 +61,22 @@ inline void Huber(double s, double delta, bool robust, double* rho, double* weig
 }
 
 // Cost at (rotation, translation) over active observations; with h/g, also the Gauss-Newton
-// system for the left perturbation [rho, phi] (p' = Exp(phi) p + rho).
+// system for the left perturbation [rho, phi] (p' = Exp(phi) p + rho). Only the upper triangle
+// of h is accumulated (scalar code: the Jacobian rows have known zeros), then mirrored.
 double Linearise(const Intrinsics& k, const Eigen::Matrix3d& rotation,
                  const Eigen::Vector3d& translation, const std::vector<Eigen::Vector3d>& points,
                  const std::vector<Eigen::Vector2d>& uvs, const std::vector<bool>& active,
                  double delta, bool robust, Matrix6* h, Vector6* g) {
   double cost = 0.0;
-  if (h != nullptr) {
-    h->setZero();
-    g->setZero();
-  }
+  // Upper triangle of H, row-major (21 entries), and g.
+  double hu[21] = {};
+  double gv[6] = {};
+  const double fx = k.fx * k.inv_sigma;
+  const double fy = k.fy * k.inv_sigma;
   Eigen::Vector3d p;
   Eigen::Vector2d e;
-  Eigen::Matrix<double, 2, 6> jacobian;
-  for (size_t i = 0; i < points.size(); ++i) {
+  const size_t n = points.size();
+  for (size_t i = 0; i < n; ++i) {
     if (!active[i]) continue;
     if (!Residual(k, rotation, translation, points[i], uvs[i], &p, &e)) continue;
     double rho = 0.0;
@@ -85,12 +87,29 @@ double Linearise(const Intrinsics& k, const Eigen::Matrix3d& rotation,
     const double inv_z = 1.0 / p.z();
     const double x = p.x() * inv_z;
     const double y = p.y() * inv_z;
-    const double fx = k.fx * k.inv_sigma;
-    const double fy = k.fy * k.inv_sigma;
-    jacobian << fx * inv_z, 0.0, -fx * x * inv_z, -fx * x * y, fx * (1.0 + x * x), -fx * y, 0.0,
-        fy * inv_z, -fy * y * inv_z, -fy * (1.0 + y * y), fy * x * y, fy * x;
-    h->noalias() += weight * jacobian.transpose() * jacobian;
-    g->noalias() += weight * jacobian.transpose() * e;
+    // Row a: d e_u / d [rho, phi] = [a0, 0, a2, a3, a4, a5]; row b: [0, b1, b2, b3, b4, b5].
+    const double a0 = fx * inv_z, a2 = -fx * x * inv_z, a3 = -fx * x * y, a4 = fx * (1.0 + x * x),
+                 a5 = -fx * y;
+    const double b1 = fy * inv_z, b2 = -fy * y * inv_z, b3 = -fy * (1.0 + y * y), b4 = fy * x * y,
+                 b5 = fy * x;
+    const double a[6] = {a0, 0.0, a2, a3, a4, a5};
+    const double b[6] = {0.0, b1, b2, b3, b4, b5};
+    const double eu = weight * e.x();
+    const double ev = weight * e.y();
+    int index = 0;
+    for (int r = 0; r < 6; ++r) {
+      const double wa = weight * a[r];
+      const double wb = weight * b[r];
+      for (int c = r; c < 6; ++c) hu[index++] += wa * a[c] + wb * b[c];
+      gv[r] += a[r] * eu + b[r] * ev;
+    }
+  }
+  if (h != nullptr) {
+    int index = 0;
+    for (int r = 0; r < 6; ++r) {
+      for (int c = r; c < 6; ++c) (*h)(r, c) = (*h)(c, r) = hu[index++];
+      (*g)[r] = gv[r];
+    }
   }
   return cost;
 }
@@ -226,9 +245,12 @@ PoseOnlyResult OptimizePose(const Camera& camera, const PoseOnlyOptions& options
   const int robust_rounds = std::max(1, options.rounds / 2);
 
   bool converged = false;
+  bool changed = true;  // did the last classification change the active set?
   int num_inliers = static_cast<int>(std::count(active.begin(), active.end(), true));
   for (int round = 0; round < options.rounds && num_inliers >= kMinInliers; ++round) {
     const bool robust = round < robust_rounds;
+    // Same inliers, same loss and a converged previous round: this round would change nothing.
+    if (round > 0 && converged && !changed && robust == (round - 1 < robust_rounds)) continue;
     const Eigen::Quaterniond rotation_before = rotation;
     const Eigen::Vector3d translation_before = translation;
     converged = options.use_ceres
@@ -247,12 +269,15 @@ PoseOnlyResult OptimizePose(const Camera& camera, const PoseOnlyOptions& options
     Eigen::Vector3d p;
     Eigen::Vector2d e;
     num_inliers = 0;
+    changed = false;
     for (size_t i = 0; i < n; ++i) {
       const bool finite = points_world[i].allFinite() && observations_uv[i].allFinite();
-      active[i] = finite &&
-                  Residual(k, r, translation, points_world[i], observations_uv[i], &p, &e) &&
-                  e.squaredNorm() <= options.chi2_threshold;
-      num_inliers += active[i] ? 1 : 0;
+      const bool inlier =
+          finite && Residual(k, r, translation, points_world[i], observations_uv[i], &p, &e) &&
+          e.squaredNorm() <= options.chi2_threshold;
+      changed = changed || inlier != active[i];
+      active[i] = inlier;
+      num_inliers += inlier ? 1 : 0;
     }
   }
 
