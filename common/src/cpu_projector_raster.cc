@@ -14,22 +14,52 @@ namespace {
 // area (b - a) x (c - a) is positive in image coordinates (x right, y down).
 bool IsTopLeft(double dx, double dy) { return (dy == 0.0 && dx > 0.0) || dy < 0.0; }
 
+// An edge function w(px, py) = step_x * px + step_y * py + offset, positive inside.
 struct Edge {
-  double start_x, start_y;
-  double step_x;  // change of the edge function per +1 in x
-  double step_y;  // change per +1 in y
+  double step_x;  // change of w per +1 in x
+  double step_y;  // change of w per +1 in y
+  double offset;
   bool top_left;
 
   Edge(const RasterVertex& start, const RasterVertex& end)
-      : start_x(start.x),
-        start_y(start.y),
-        step_x(-(end.y - start.y)),
+      : step_x(-(end.y - start.y)),
         step_y(end.x - start.x),
+        offset(-(step_x * start.x + step_y * start.y)),
         top_left(IsTopLeft(end.x - start.x, end.y - start.y)) {}
-  double At(double px, double py) const {
-    return step_y * (py - start_y) + step_x * (px - start_x);
+};
+
+// One edge along one row: the pixel-centre coverage test, the only definition of "inside".
+struct RowEdge {
+  double row_offset;  // w at px = 0 on this row
+  double step_x;
+  bool top_left;
+  bool Inside(int x) const {
+    const double w = row_offset + step_x * (x + 0.5);
+    return top_left ? w >= 0.0 : w > 0.0;
   }
 };
+
+// Narrows [*lo, *hi] to the pixels inside `e`. w is linear in x, so the inside pixels of a row
+// form one interval; its end is found analytically and then checked with Inside() exactly.
+void ClipSpan(const RowEdge& e, int* lo, int* hi) {
+  if (*lo > *hi) return;
+  if (e.step_x == 0.0) {
+    if (!e.Inside(*lo)) *hi = *lo - 1;
+    return;
+  }
+  const double crossing = std::clamp(-e.row_offset / e.step_x - 0.5, *lo - 2.0, *hi + 2.0);
+  if (e.step_x > 0.0) {  // inside to the right of the crossing
+    int x = std::max(*lo, static_cast<int>(std::ceil(crossing)));
+    while (x <= *hi && !e.Inside(x)) ++x;
+    while (x > *lo && e.Inside(x - 1)) --x;
+    *lo = x;
+  } else {  // inside to the left
+    int x = std::min(*hi, static_cast<int>(std::floor(crossing)));
+    while (x >= *lo && !e.Inside(x)) --x;
+    while (x < *hi && e.Inside(x + 1)) ++x;
+    *hi = x;
+  }
+}
 
 }  // namespace
 
@@ -77,24 +107,28 @@ void RasterizeTriangle(const RasterVertex& a, const RasterVertex& b_in, const Ra
   const int x0 = static_cast<int>(first_x), x1 = static_cast<int>(last_x);
   const int y0 = static_cast<int>(first_y), y1 = static_cast<int>(last_y);
 
-  const Edge e0(b, c), e1(c, a), e2(a, b);  // weights of a, b and c
-  const double inv_area = 1.0 / area;
+  const Edge edges[3] = {Edge(b, c), Edge(c, a), Edge(a, b)};
+  // 1/Z is affine in screen space: inv_z(px, py) = dx * px + dy * py + at_origin.
+  const double dx = ((b.inv_z - a.inv_z) * (c.y - a.y) - (c.inv_z - a.inv_z) * (b.y - a.y)) / area;
+  const double dy = ((c.inv_z - a.inv_z) * (b.x - a.x) - (b.inv_z - a.inv_z) * (c.x - a.x)) / area;
+  const double at_origin = a.inv_z - dx * a.x - dy * a.y;
+  // Inside the triangle 1/Z is at least the smallest vertex value; rounding must not go below.
+  const float min_inv_z = static_cast<float>(std::min({a.inv_z, b.inv_z, c.inv_z}) * (1.0 - 1e-6));
+  const float step = static_cast<float>(dx);
   for (int y = y0; y <= y1; ++y) {
-    const double py = y + 0.5, px = x0 + 0.5;
-    double w0 = e0.At(px, py), w1 = e1.At(px, py), w2 = e2.At(px, py);
-    float* out = buffer->row(y);
-    for (int x = x0; x <= x1; ++x) {
-      const bool inside = (e0.top_left ? w0 >= 0.0 : w0 > 0.0) &&
-                          (e1.top_left ? w1 >= 0.0 : w1 > 0.0) &&
-                          (e2.top_left ? w2 >= 0.0 : w2 > 0.0);
-      if (inside) {
-        const double inv_z = (w0 * a.inv_z + w1 * b.inv_z + w2 * c.inv_z) * inv_area;
-        const float depth = static_cast<float>(1.0 / inv_z);
-        if (depth < out[x]) out[x] = depth;
-      }
-      w0 += e0.step_x;
-      w1 += e1.step_x;
-      w2 += e2.step_x;
+    const double py = y + 0.5;
+    int lo = x0, hi = x1;
+    for (const Edge& e : edges) {
+      ClipSpan(RowEdge{e.offset + e.step_y * py, e.step_x, e.top_left}, &lo, &hi);
+    }
+    if (lo > hi) continue;
+    // In float relative to the span start, so the loop vectorises and stays accurate.
+    const float start = static_cast<float>(dx * (lo + 0.5) + dy * py + at_origin);
+    float* out = buffer->row(y) + lo;
+    const int n = hi - lo + 1;
+    for (int i = 0; i < n; ++i) {
+      const float inv_z = std::max(start + step * static_cast<float>(i), min_inv_z);
+      out[i] = std::min(out[i], 1.f / inv_z);
     }
   }
 }
