@@ -5,10 +5,12 @@
 
 #include <unistd.h>
 
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
 #include <set>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -60,36 +62,37 @@ const std::vector<std::vector<int>> kCubeFaces = {{0, 3, 2, 1},   {4, 5, 6, 7}, 
                                                   {3, 2, 8, 6, 7}};
 
 std::string CubeObj() {
-  std::string s = "# cube\n";
+  std::ostringstream s;
+  s << "# cube\n";
   for (const auto& face : kCubeFaces) {
-    for (int v : face) s += std::string("v ") + kCubeVertices[v] + "\n";
+    for (int v : face) s << "v " << kCubeVertices[v] << "\n";
   }
   int next = 1;
   for (const auto& face : kCubeFaces) {
-    s += "f";
-    for (size_t k = 0; k < face.size(); ++k) s += " " + std::to_string(next++);
-    s += "\n";
+    s << "f";
+    for (size_t k = 0; k < face.size(); ++k) s << " " << next++;
+    s << "\n";
   }
-  return s;
+  return s.str();
 }
 
 std::string CubePly() {
   size_t corners = 0;
   for (const auto& face : kCubeFaces) corners += face.size();
-  std::string s = "ply\nformat ascii 1.0\nelement vertex " + std::to_string(corners) +
-                  "\nproperty float x\nproperty float y\nproperty float z\nelement face " +
-                  std::to_string(kCubeFaces.size()) +
-                  "\nproperty list uchar int vertex_indices\nend_header\n";
+  std::ostringstream s;
+  s << "ply\nformat ascii 1.0\nelement vertex " << corners
+    << "\nproperty float x\nproperty float y\nproperty float z\nelement face " << kCubeFaces.size()
+    << "\nproperty list uchar int vertex_indices\nend_header\n";
   for (const auto& face : kCubeFaces) {
-    for (int v : face) s += std::string(kCubeVertices[v]) + "\n";
+    for (int v : face) s << kCubeVertices[v] << "\n";
   }
   int next = 0;
   for (const auto& face : kCubeFaces) {
-    s += std::to_string(face.size());
-    for (size_t k = 0; k < face.size(); ++k) s += " " + std::to_string(next++);
-    s += "\n";
+    s << face.size();
+    for (size_t k = 0; k < face.size(); ++k) s << " " << next++;
+    s << "\n";
   }
-  return s;
+  return s.str();
 }
 
 TEST_F(SceneTest, ObjAndPlyOfTheSameFacesGiveTheSameIds) {
@@ -193,10 +196,9 @@ TEST_F(SceneTest, NodeTransformsMatchAssimpPreTransformOnRealModels) {
     const float tolerance = 1e-5f * box.diagonal().norm();
     auto key = [&](const Eigen::Vector3f& p) {
       const Eigen::Vector3f q = (p - box.min()) / (4 * tolerance);
-      return std::to_string(std::lround(q.x())) + "," + std::to_string(std::lround(q.y())) + "," +
-             std::to_string(std::lround(q.z()));
+      return std::array<long, 3>{std::lround(q.x()), std::lround(q.y()), std::lround(q.z())};
     };
-    std::set<std::string> ours, theirs;
+    std::set<std::array<long, 3>> ours, theirs;
     for (const auto& p : scene->positions) ours.insert(key(p));
     for (const auto& p : reference) theirs.insert(key(p));
     size_t missing = 0;
@@ -208,7 +210,7 @@ TEST_F(SceneTest, NodeTransformsMatchAssimpPreTransformOnRealModels) {
     Assimp::Importer raw_importer;
     const aiScene* raw = raw_importer.ReadFile(path, 0);
     ASSERT_NE(raw, nullptr);
-    std::set<std::string> untransformed;
+    std::set<std::array<long, 3>> untransformed;
     for (unsigned m = 0; m < raw->mNumMeshes; ++m) {
       for (unsigned v = 0; v < raw->mMeshes[m]->mNumVertices; ++v) {
         const aiVector3D& p = raw->mMeshes[m]->mVertices[v];
