@@ -175,6 +175,7 @@ void LocalMapper::TriangulateNewPoints(KeyframeId kf_id) {
 
 void LocalMapper::LocalBundleAdjust(KeyframeId kf_id) {
   BaProblem problem;
+  std::vector<VertexId> rest;  // window points left out of the BA (re-triangulated after it)
   map_->Read([&](const MapData& m) {
     std::vector<KeyframeId> window = {kf_id};
     for (const auto& [other, shared] : m.Covisible(kf_id, kMinCovisiblePoints)) {
@@ -222,6 +223,21 @@ void LocalMapper::LocalBundleAdjust(KeyframeId kf_id) {
     // its partner stay fixed while they are in the window, so early windows keep the scale.
     if (fixed.empty() && !problem.keyframes.empty()) problem.keyframes[0].fixed = true;
     std::sort(point_ids.begin(), point_ids.end());
+    const int cap = options_.local_ba_max_points;
+    if (cap > 0 && static_cast<int>(point_ids.size()) > cap) {
+      std::vector<VertexId> kept;
+      const double step = static_cast<double>(point_ids.size()) / cap;
+      double next = 0.0;
+      for (size_t i = 0; i < point_ids.size(); ++i) {
+        if (static_cast<double>(i) >= next) {
+          kept.push_back(point_ids[i]);
+          next += step;
+        } else {
+          rest.push_back(point_ids[i]);
+        }
+      }
+      point_ids.swap(kept);
+    }
     for (const VertexId vid : point_ids) {
       const MapPoint* p = m.point(vid);
       const int pi = static_cast<int>(problem.points.size());
@@ -242,6 +258,38 @@ void LocalMapper::LocalBundleAdjust(KeyframeId kf_id) {
     stats_.total_local_ba_ms += result.solve_ms;
   }
   if (result.success) ApplyBundleAdjustment(problem, result);
+  RetriangulatePoints(rest);
+}
+
+void LocalMapper::RetriangulatePoints(const std::vector<VertexId>& ids) {
+  if (ids.empty()) return;
+  std::vector<std::pair<VertexId, Eigen::Vector3d>> updated;
+  const double max_err_sq = checks_.max_reprojection_px * checks_.max_reprojection_px;
+  map_->Read([&](const MapData& m) {
+    std::vector<Pose3> poses;
+    std::vector<Eigen::Vector2d> uvs;
+    for (const VertexId id : ids) {
+      const MapPoint* p = m.point(id);
+      if (p == nullptr || p->observers.size() < 2) continue;
+      poses.clear();
+      uvs.clear();
+      for (const KeyframeId o : p->observers) {
+        const Keyframe* kf = m.keyframe(o);
+        poses.push_back(kf->world_from_camera.Inverse());
+        uvs.push_back(*kf->Find(id));
+      }
+      const auto q = TriangulateDlt(options_.camera, poses, uvs);
+      if (!q) continue;
+      bool ok = true;
+      for (size_t k = 0; k < poses.size() && ok; ++k) {
+        ok = ReprojectionErrorSq(options_.camera, poses[k], *q, uvs[k]) <= max_err_sq;
+      }
+      if (ok) updated.emplace_back(id, *q);
+    }
+  });
+  map_->Write([&](MapData& m) {
+    for (const auto& [id, q] : updated) m.SetPointPosition(id, q);
+  });
 }
 
 void LocalMapper::ApplyBundleAdjustment(const BaProblem& problem,

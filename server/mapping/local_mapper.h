@@ -52,6 +52,8 @@ class LocalMapper {
   void TriangulateNewPoints(KeyframeId kf_id);
   void LocalBundleAdjust(KeyframeId kf_id);
   void CullKeyframes(KeyframeId kf_id);
+  // Multi-view DLT of points from all their observers (poses as they are now).
+  void RetriangulatePoints(const std::vector<VertexId>& ids);
   // Applies a solved BA problem: poses, positions, outlier observations, unsupported points.
   void ApplyBundleAdjustment(const BaProblem& problem, const BundleAdjustmentResult& result);
 

@@ -43,6 +43,8 @@ bool Options::Check(std::string* why) const {
   if (keyframe_min_new_points < 1) return fail("keyframe_min_new_points must be positive");
   if (!(keyframe_baseline_ratio > 0.0)) return fail("keyframe_baseline_ratio must be positive");
   if (!(keyframe_max_interval_s > 0.0)) return fail("keyframe_max_interval_s must be positive");
+  if (max_tracking_points < 0) return fail("max_tracking_points must be >= 0");
+  if (local_ba_max_points < 0) return fail("local_ba_max_points must be >= 0");
   if (local_ba_window < 2) return fail("local_ba_window must be at least 2");
   if (mapping_queue_capacity < 1) return fail("mapping_queue_capacity must be positive");
   if (!(min_triangulation_parallax_deg > 0.0)) {

@@ -18,7 +18,7 @@ constexpr double kChi2TwoDof = 5.991;      // 95%, 2 dof (transfer / reprojectio
 constexpr double kHomographyRatio = 0.40;  // ORB-SLAM2: RH > 0.40 selects the homography
 constexpr double kAmbiguityRatio = 0.75;   // second best motion must explain fewer points
 constexpr double kMinGoodFraction = 0.9;   // of the model's inliers
-constexpr int kMaxMatches = 3000;          // subsampled beyond this (RANSAC cost)
+constexpr int kMaxMatches = 1000;          // subsampled beyond this (RANSAC cost)
 
 struct Matches {
   std::vector<VertexId> ids;
@@ -166,56 +166,83 @@ std::optional<TwoViewReconstruction> ReconstructTwoView(const Options& options,
     score_h = ScoreHomography(h, m, sigma);
   }
   if (score_e + score_h <= 0.0) return fail("no model explains the matches");
-  const bool use_h = score_h / (score_e + score_h) > kHomographyRatio;
+  const bool prefer_h = score_h / (score_e + score_h) > kHomographyRatio;
 
-  std::vector<int> inliers;
-  const cv::Mat& mask = use_h ? h_mask : e_mask;
-  for (int i = 0; i < n; ++i) {
-    if (mask.at<uchar>(i)) inliers.push_back(i);
-  }
-  if (static_cast<int>(inliers.size()) < options.init_min_points)
-    return fail("too few model inliers");
-
-  std::vector<std::pair<Eigen::Matrix3d, Eigen::Vector3d>> motions;
-  if (use_h) {
-    std::vector<cv::Mat> rs, ts, normals;
-    cv::decomposeHomographyMat(h_cv, k_cv, rs, ts, normals);
-    for (size_t i = 0; i < rs.size(); ++i) {
-      Eigen::Matrix3d r;
-      Eigen::Vector3d t;
-      cv::cv2eigen(rs[i], r);
-      cv::cv2eigen(ts[i], t);
-      motions.emplace_back(r, t);
+  // Motions of one model, checked by triangulation; the best must be unique. When the
+  // preferred model is ambiguous (a homography fitted to a non-planar scene at low parallax
+  // has two valid decompositions), the other model is tried.
+  auto try_model = [&](bool homography, std::string* reason) -> std::optional<MotionCheck> {
+    const cv::Mat& mask = homography ? h_mask : e_mask;
+    if ((homography ? h_cv.empty() : e_cv.rows != 3) || mask.empty()) {
+      *reason = "no model";
+      return std::nullopt;
     }
-  } else {
-    cv::Mat r1_cv, r2_cv, t_cv;
-    cv::decomposeEssentialMat(e_cv, r1_cv, r2_cv, t_cv);
-    Eigen::Matrix3d r1, r2;
-    Eigen::Vector3d t;
-    cv::cv2eigen(r1_cv, r1);
-    cv::cv2eigen(r2_cv, r2);
-    cv::cv2eigen(t_cv, t);
-    motions = {{r1, t}, {r1, -t}, {r2, t}, {r2, -t}};
+    std::vector<int> inliers;
+    for (int i = 0; i < n; ++i) {
+      if (mask.at<uchar>(i)) inliers.push_back(i);
+    }
+    if (static_cast<int>(inliers.size()) < options.init_min_points) {
+      *reason = "too few model inliers";
+      return std::nullopt;
+    }
+    std::vector<std::pair<Eigen::Matrix3d, Eigen::Vector3d>> motions;
+    if (homography) {
+      std::vector<cv::Mat> rs, ts, normals;
+      cv::decomposeHomographyMat(h_cv, k_cv, rs, ts, normals);
+      for (size_t i = 0; i < rs.size(); ++i) {
+        Eigen::Matrix3d r;
+        Eigen::Vector3d t;
+        cv::cv2eigen(rs[i], r);
+        cv::cv2eigen(ts[i], t);
+        motions.emplace_back(r, t);
+      }
+    } else {
+      cv::Mat r1_cv, r2_cv, t_cv;
+      cv::decomposeEssentialMat(e_cv, r1_cv, r2_cv, t_cv);
+      Eigen::Matrix3d r1, r2;
+      Eigen::Vector3d t;
+      cv::cv2eigen(r1_cv, r1);
+      cv::cv2eigen(r2_cv, r2);
+      cv::cv2eigen(t_cv, t);
+      motions = {{r1, t}, {r1, -t}, {r2, t}, {r2, -t}};
+    }
+    std::vector<MotionCheck> checks;
+    for (const auto& [r, t] : motions) {
+      if (t.norm() < 1e-12) continue;
+      checks.push_back(CheckMotion(options, m, inliers, r, t.normalized()));
+    }
+    if (checks.empty()) {
+      *reason = "no translation between the views";
+      return std::nullopt;
+    }
+    std::sort(checks.begin(), checks.end(),
+              [](const auto& a, const auto& b) { return a.good > b.good; });
+    const int min_good =
+        std::max(options.init_min_points,
+                 static_cast<int>(kMinGoodFraction * static_cast<double>(inliers.size())));
+    if (checks[0].good < min_good) {
+      *reason = "too few points triangulate with the best motion";
+      return std::nullopt;
+    }
+    if (checks.size() > 1 && checks[1].good > kAmbiguityRatio * checks[0].good) {
+      *reason = "ambiguous motion (rotation only or too little parallax)";
+      return std::nullopt;
+    }
+    if (checks[0].median_parallax_deg < options.init_min_parallax_deg) {
+      *reason = "too little parallax";
+      return std::nullopt;
+    }
+    return std::move(checks[0]);
+  };
+  std::string reason_preferred, reason_other;
+  bool use_h = prefer_h;
+  auto chosen = try_model(prefer_h, &reason_preferred);
+  if (!chosen) {
+    chosen = try_model(!prefer_h, &reason_other);
+    use_h = !prefer_h;
   }
-  if (motions.empty()) return fail("model decomposition failed");
-
-  std::vector<MotionCheck> checks;
-  for (const auto& [r, t] : motions) {
-    if (t.norm() < 1e-12) continue;
-    checks.push_back(CheckMotion(options, m, inliers, r, t.normalized()));
-  }
-  if (checks.empty()) return fail("no translation between the views");
-  std::sort(checks.begin(), checks.end(),
-            [](const auto& a, const auto& b) { return a.good > b.good; });
-  const MotionCheck& best = checks[0];
-  const int min_good =
-      std::max(options.init_min_points,
-               static_cast<int>(kMinGoodFraction * static_cast<double>(inliers.size())));
-  if (best.good < min_good) return fail("too few points triangulate with the best motion");
-  if (checks.size() > 1 && checks[1].good > kAmbiguityRatio * best.good) {
-    return fail("ambiguous motion (rotation only or too little parallax)");
-  }
-  if (best.median_parallax_deg < options.init_min_parallax_deg) return fail("too little parallax");
+  if (!chosen) return fail(reason_preferred.c_str());
+  const MotionCheck& best = *chosen;
 
   TwoViewReconstruction out;
   out.camera1_from_camera0 = best.camera1_from_camera0;
@@ -249,6 +276,8 @@ std::optional<InitialMap> Initializer::Process(int64_t seq, double timestamp,
   auto two_view = ReconstructTwoView(options_, reference_->features, features, &why);
   if (!two_view) {
     last_failure_ = why;
+    M2S_LOG(kDebug) << "initialisation with frames " << reference_->seq << " and " << seq
+                    << " refused: " << why;
     if (frames_since_reference_ > options_.init_max_reference_age ||
         why == "too few shared features") {
       set_reference();

@@ -11,7 +11,8 @@
 namespace m2s::slam {
 namespace {
 
-constexpr int kMaxPnpPoints = 500;  // RANSAC input, subsampled evenly beyond this
+constexpr int kMaxPnpPoints = 500;
+constexpr double kChi2TwoDof = 5.991;  // RANSAC input, subsampled evenly beyond this
 constexpr int kPnpIterations = 200;
 constexpr double kPnpThresholdSigmas = 4.0;
 // Keyframes for unmapped features need some baseline (fraction of keyframe_baseline_ratio),
@@ -101,8 +102,15 @@ bool Tracker::TrackWithModel(const Association& a, Pose3* camera_from_world,
   points.reserve(a.ids.size());
   uvs.reserve(a.ids.size());
   index.reserve(a.ids.size());
+  const int usable = skip_dormant ? num_active : static_cast<int>(a.ids.size());
+  const int cap = options_.max_tracking_points;
+  const double step = cap > 0 && usable > cap ? static_cast<double>(usable) / cap : 1.0;
+  double next = 0.0;
+  int k = -1;
   for (size_t i = 0; i < a.ids.size(); ++i) {
     if (skip_dormant && a.dormant[i]) continue;
+    if (++k < static_cast<int>(next)) continue;
+    next += step;
     points.push_back(a.points[i]);
     uvs.push_back(a.uvs[i]);
     index.push_back(static_cast<int>(i));
@@ -112,10 +120,8 @@ bool Tracker::TrackWithModel(const Association& a, Pose3* camera_from_world,
   const PoseOnlyResult r =
       OptimizePose(options_.camera, MakePoseOptions(options_), points, uvs, &pose);
   if (!pose.AllFinite() || r.num_inliers < options_.min_tracked_points) return false;
-  inlier->assign(a.ids.size(), false);
-  for (size_t k = 0; k < index.size(); ++k) (*inlier)[index[k]] = r.inlier[k];
   *camera_from_world = pose;
-  return true;
+  return Classify(a, pose, skip_dormant, inlier) >= options_.min_tracked_points;
 }
 
 bool Tracker::Relocalise(const Association& a, Pose3* camera_from_world,
@@ -144,17 +150,39 @@ bool Tracker::Relocalise(const Association& a, Pose3* camera_from_world,
   cv::cv2eigen(r_cv, r);
   cv::cv2eigen(tvec, t);
   Pose3 pose(r, t);
+  // Refine on the PnP inliers, then classify every associated point.
+  std::vector<Eigen::Vector3d> points;
+  std::vector<Eigen::Vector2d> uvs;
+  for (const int i : pnp_inliers) {
+    points.emplace_back(object[i].x, object[i].y, object[i].z);
+    uvs.emplace_back(image[i].x, image[i].y);
+  }
   const PoseOnlyResult refined =
-      OptimizePose(options_.camera, MakePoseOptions(options_), a.points, a.uvs, &pose);
-  if (!pose.AllFinite() || refined.num_inliers < options_.min_tracked_points) return false;
-  *inlier = refined.inlier;
+      OptimizePose(options_.camera, MakePoseOptions(options_), points, uvs, &pose);
+  if (!pose.AllFinite() || refined.num_inliers < options_.min_tracked_points / 2) return false;
   *camera_from_world = pose;
-  return true;
+  return Classify(a, pose, /*skip_dormant=*/false, inlier) >= options_.min_tracked_points;
+}
+
+int Tracker::Classify(const Association& a, const Pose3& camera_from_world, bool skip_dormant,
+                      std::vector<bool>* inlier) const {
+  const double max_err_sq = kChi2TwoDof * options_.pixel_sigma * options_.pixel_sigma;
+  inlier->assign(a.ids.size(), false);
+  int n = 0;
+  for (size_t i = 0; i < a.ids.size(); ++i) {
+    if (skip_dormant && a.dormant[i]) continue;
+    const Eigen::Vector3d pc = camera_from_world * a.points[i];
+    if (!(pc.z() > 0.0)) continue;
+    if ((options_.camera.Project(pc) - a.uvs[i]).squaredNorm() <= max_err_sq) {
+      (*inlier)[i] = true;
+      ++n;
+    }
+  }
+  return n;
 }
 
 bool Tracker::NeedKeyframe(const Association& a, int num_inliers, const Pose3& world_from_camera,
                            double timestamp, bool loop_candidate) const {
-  if (loop_candidate) return true;
   const int reference_points = a.reference_points >= 0 ? a.reference_points : reference_points_;
   if (num_inliers < options_.keyframe_tracked_ratio * reference_points) return true;
   if (timestamp - last_keyframe_time_ > options_.keyframe_max_interval_s) return true;
@@ -162,6 +190,10 @@ bool Tracker::NeedKeyframe(const Association& a, int num_inliers, const Pose3& w
       (world_from_camera.translation() - reference_world_from_camera_.translation()).norm() /
       std::max(last_keyframe_median_depth_, 1e-9);
   if (baseline > options_.keyframe_baseline_ratio) return true;
+  // Re-observed old points: a keyframe (with some baseline, so they can be re-triangulated).
+  if (loop_candidate && baseline > kNewPointsBaselineFraction * options_.keyframe_baseline_ratio) {
+    return true;
+  }
   return a.num_new_triangulable >= options_.keyframe_min_new_points &&
          baseline > kNewPointsBaselineFraction * options_.keyframe_baseline_ratio;
 }

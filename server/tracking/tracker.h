@@ -74,6 +74,9 @@ class Tracker {
   void Associate(const SortedFeatures& features, Association* a) const;
   bool TrackWithModel(const Association& a, Pose3* camera_from_world, std::vector<bool>* inlier);
   bool Relocalise(const Association& a, Pose3* camera_from_world, std::vector<bool>* inlier);
+  // Marks the points reprojecting within the chi-square bound; returns their number.
+  int Classify(const Association& a, const Pose3& camera_from_world, bool skip_dormant,
+               std::vector<bool>* inlier) const;
   bool NeedKeyframe(const Association& a, int num_inliers, const Pose3& world_from_camera,
                     double timestamp, bool loop_candidate) const;
 

@@ -133,6 +133,9 @@ struct Options {
   int init_min_points = 60;
   double init_min_parallax_deg = 1.0;
   int init_max_reference_age = 120;
+  // Pose-only optimisation uses at most this many associated points (evenly spread over the
+  // frame's ids; 0: all). Bounded tracking time on dense frames.
+  int max_tracking_points = 600;
   // A frame with fewer pose inliers than this is lost (and relocalisation needs as many).
   int min_tracked_points = 30;
   // Keyframe when the tracked points fall below this fraction of the reference keyframe's,
@@ -146,6 +149,9 @@ struct Options {
   // Local bundle adjustment: number of covisible keyframes optimised (others observing the
   // points are held fixed), and the capacity of the keyframe queue in front of mapping.
   int local_ba_window = 12;
+  // At most this many points enter a local BA (evenly spread over ids); the window's other
+  // points are re-triangulated from all their observers with the refined poses (0: no cap).
+  int local_ba_max_points = 2000;
   int mapping_queue_capacity = 4;
   // New points need this angle between their rays.
   double min_triangulation_parallax_deg = 1.0;
