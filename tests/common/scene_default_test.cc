@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include "m2s/common/camera.h"
+#include "m2s/common/cpu_projector.h"
 #include "m2s/common/scene.h"
 #include "m2s/common/trajectory.h"
 
@@ -75,6 +76,22 @@ TEST(DefaultScene, EveryPoseOfTheDefaultTrajectorySeesHundredsOfVertices) {
       visible += camera.InImage(uv.x(), uv.y());
     }
     EXPECT_GE(visible, 300) << "pose " << i << " at t = " << trajectory[i].timestamp;
+  }
+}
+
+// The same with occlusion (walls and furniture hide what is behind them): still hundreds.
+TEST(DefaultScene, OccludedViewsAlongTheDefaultTrajectoryKeepHundredsOfVertices) {
+  const Scene scene = MakeDefaultScene();
+  const Trajectory trajectory = DefaultTrajectory();
+  const Camera camera = Camera::FromHorizontalFov(640, 480, 90.0);
+  ProjectorOptions options;
+  options.occlusion = true;
+  Expected<std::unique_ptr<CpuProjector>> projector = CpuProjector::Create(scene, options);
+  ASSERT_TRUE(projector.ok()) << projector.error();
+  std::vector<ProjectedVertex> features;
+  for (size_t i = 0; i < trajectory.size(); i += 30) {
+    ASSERT_TRUE((*projector)->Project(trajectory[i].world_from_camera, camera, &features).ok());
+    EXPECT_GE(features.size(), 200u) << "pose " << i << " at t = " << trajectory[i].timestamp;
   }
 }
 
