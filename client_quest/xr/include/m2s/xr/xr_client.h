@@ -1,0 +1,89 @@
+// The OpenXR client's run: the headset's VIEW pose drives the projector on the app's own GLES
+// context, frames go to the server over any transport (LCM or on-device) through the client
+// core (m2s::client), and the map replica, the keyframes and the estimated against the true
+// head pose are drawn in both eyes over the scene mesh.
+//
+// Per frame on the render thread: PollEvents, xrWaitFrame/xrBeginFrame, VIEW pose ->
+// world_from_camera (axis_conversion.h), projection (FrameSource), hand-off
+// (ClientSession::Send: encode + publish or enqueue; never waits for SLAM), overlay update
+// (new map revision, Sim3 alignment of the SLAM frame to the world from estimated/true pose
+// pairs), both eyes drawn by MapRenderer, xrEndFrame. The render thread's time on projection,
+// hand-off and overlay is measured per frame and reported (p50/p95) at exit and in
+// xr_metrics.json.
+//
+// Controls (a controller button on the headset; here keys on stdin or scripted events):
+// reset SLAM (a new session: the map starts again), toggle the overlay, quit.
+//
+//   XrClientOptions options;  // default scene, on-device, GPU projector
+//   auto platform = xr::MakePlatform(nullptr);
+//   Expected<XrClientResult> result = RunXrClient(options, platform.get());
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "m2s/common/camera.h"
+#include "m2s/common/feature_noise.h"
+#include "m2s/common/projector.h"
+#include "m2s/common/status.h"
+#include "m2s/common/wire_format.h"
+#include "m2s/server_app/session_manager.h"
+#include "m2s/xr/xr_platform.h"
+
+namespace m2s::xr {
+
+struct ControlEvent {
+  enum class Kind { kReset, kToggleOverlay, kQuit };
+  Kind kind = Kind::kQuit;
+  int64_t frame = 0;  // frame index (frames begun) at which it fires
+};
+
+// Parses "reset@200,overlay@250,quit@400" (names: reset, overlay, quit).
+Expected<std::vector<ControlEvent>> ParseControlEvents(const std::string& text);
+
+struct XrClientOptions {
+  std::string mesh_path;  // empty: the embedded default scene
+  // The virtual camera the features are projected with (the centre eye's pose).
+  Camera camera = Camera::FromHorizontalFov(640, 480, 90.0);
+  bool on_device = true;
+  std::string lcm_url = wire::kDefaultLcmUrl;
+  std::string projector = "gpu";  // "gpu" (CPU fallback when GLES 3.1 compute fails) or "cpu"
+  ProjectorOptions projector_options;
+  FeatureNoiseOptions noise;
+  server_app::ServerOptions server;  // the on-device server
+  bool stage_space = false;          // world = STAGE instead of LOCAL
+  bool overlay = true;               // draw map points, keyframes and poses at start
+  bool draw_mesh = true;             // draw the scene mesh (the virtual world)
+  int max_frames = 0;                // request exit after this many frames (0: runtime decides)
+  std::vector<ControlEvent> events;  // scripted controls
+  bool stdin_keys = false;           // r: reset, o: overlay, q: quit (one key per line)
+  int align_every_frames = 15;       // how often the overlay's Sim3 alignment is refreshed
+  double final_pose_timeout_s = 5.0;
+  std::string out_dir = "out";
+  bool Check(std::string* why) const;
+};
+
+struct TimingStats {
+  double p50_ms = 0.0, p95_ms = 0.0, max_ms = 0.0;
+  int64_t n = 0;
+};
+
+struct XrClientResult {
+  int64_t frames = 0;       // frames begun
+  int64_t frames_sent = 0;  // frames projected and handed to the transport
+  int64_t frames_rendered = 0;
+  int64_t sessions = 0;       // OpenXR sessions created (more than 1 after a session loss)
+  int64_t slam_sessions = 0;  // client sessions (1 + resets)
+  bool instance_lost = false;
+  double ate_rmse = -1.0;  // from the run outputs (Sim3-aligned)
+  TimingStats projection, handoff, overlay, frame;
+  std::string summary;  // one line
+};
+
+// Runs until the runtime ends the session (or the instance is lost, or max_frames / quit),
+// then writes trajectory.tum, groundtruth.tum, keyframes.tum, metrics.json, trajectory.png,
+// map.png and xr_metrics.json to out_dir.
+Expected<XrClientResult> RunXrClient(const XrClientOptions& options, XrPlatform* platform);
+
+}  // namespace m2s::xr
