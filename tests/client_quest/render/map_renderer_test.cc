@@ -4,8 +4,11 @@
 #include <gtest/gtest.h>
 
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
+#include <set>
 
+#include "m2s/common/scene.h"
 #include "m2s/gpu/gl_context.h"
 #include "m2s/render/offscreen_target.h"
 
@@ -153,6 +156,51 @@ TEST_F(MapRendererTest, PngRoundTrip) {
   std::filesystem::remove(path);
   EXPECT_FALSE(WritePng("/nonexistent-dir/x.png", image));
   EXPECT_FALSE(ReadPng("/nonexistent-dir/x.png"));
+}
+
+TEST_F(MapRendererTest, DefaultSceneOverviewLooksLikeARoom) {
+  // What the headless client's map.png shows: the room from a corner, shaded, with a few
+  // "map points" (every 50th vertex) and keyframes along a line.
+  const Scene scene = MakeDefaultScene();
+  MapRendererOptions options;
+  options.frustum_depth_m = 0.25;
+  auto renderer = MapRenderer::Create(options);
+  ASSERT_TRUE(renderer) << renderer.error();
+  ASSERT_TRUE((*renderer)->SetMesh(scene.positions, scene.triangles));
+  std::vector<Eigen::Vector3f> points;
+  for (size_t i = 0; i < scene.positions.size(); i += 50) points.push_back(scene.positions[i]);
+  (*renderer)->SetMapPoints(points);
+  std::vector<Pose3> keyframes;
+  for (int k = 0; k < 6; ++k) {
+    const Eigen::Vector3d eye(-1.5 + 0.6 * k, 0.0, 1.6);
+    const Eigen::Matrix3d r =
+        Eigen::AngleAxisd(-M_PI / 2, Eigen::Vector3d::UnitX()).toRotationMatrix();
+    keyframes.emplace_back(r, eye);  // looking along +y, image y down = world -z
+  }
+  (*renderer)->SetKeyframes(keyframes);
+  (*renderer)->SetFrustumCamera(camera_);
+  const Eigen::Vector3d eye(-2.8, -2.3, 2.5), target(0.5, 0.5, 0.6);
+  const Eigen::Vector3d z = (target - eye).normalized();
+  const Eigen::Vector3d x = z.cross(Eigen::Vector3d::UnitZ()).normalized();
+  Eigen::Matrix3d r;
+  r << x, z.cross(x), z;
+  const RgbaImage image = Render(**renderer, Pose3(r, eye));
+  int background = 0, points_drawn = 0, keyframe_pixels = 0;
+  std::set<int> greys;
+  for (int y = 0; y < kHeight; ++y)
+    for (int x = 0; x < kWidth; ++x) {
+      background += PixelIs(image, x, y, options.background);
+      points_drawn += PixelIs(image, x, y, options.point_color);
+      keyframe_pixels += PixelIs(image, x, y, options.keyframe_color);
+      greys.insert(image.at(x, y)[0] / 8);
+    }
+  EXPECT_LT(background, kWidth * kHeight / 20) << "inside the room, walls fill the view";
+  EXPECT_GT(points_drawn, 500);
+  EXPECT_GT(keyframe_pixels, 100);
+  EXPECT_GT(greys.size(), 8u) << "shading should separate the faces";
+  if (const char* dir = std::getenv("M2S_TEST_OUTPUT_DIR")) {
+    EXPECT_TRUE(WritePng(std::string(dir) + "/map_renderer_overview.png", image));
+  }
 }
 
 TEST_F(MapRendererTest, RejectsBadInput) {
