@@ -18,6 +18,14 @@
 #include "m2s/common/geometry.h"
 #include "m2s/common/types.h"
 
+// On x86-64 with GCC, hot loops are compiled twice (baseline SSE2 and x86-64-v3: AVX2 + FMA)
+// and the variant is picked at load time; elsewhere the baseline build is used.
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && defined(__ELF__)
+#define M2S_KERNEL_CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
+#else
+#define M2S_KERNEL_CLONES
+#endif
+
 namespace m2s::internal {
 
 inline constexpr size_t kSimdAlignment = 64;

@@ -3,14 +3,6 @@
 
 #include "cpu_projector_internal.h"
 
-// On x86-64 with GCC, compile the kernel twice (baseline SSE2 and x86-64-v3: AVX2 + FMA) and
-// pick at load time. Without it the baseline SSE2 build is used everywhere.
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && defined(__ELF__)
-#define M2S_KERNEL_CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
-#else
-#define M2S_KERNEL_CLONES
-#endif
-
 namespace m2s::internal {
 
 WorkerPool::WorkerPool(int size) {

@@ -87,6 +87,7 @@ float DepthBuffer::Max3x3(int x, int y) const {
   return result;
 }
 
+M2S_KERNEL_CLONES
 void RasterizeTriangle(const RasterVertex& a, const RasterVertex& b_in, const RasterVertex& c_in,
                        int row_begin, int row_end, DepthBuffer* buffer) {
   RasterVertex b = b_in, c = c_in;
