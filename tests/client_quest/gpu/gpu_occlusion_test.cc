@@ -1,4 +1,5 @@
 // GPU occlusion: a scene whose hidden set is known exactly, and agreement with the CPU rule.
+#include <GLES3/gl31.h>
 #include <gtest/gtest.h>
 
 #include <set>
@@ -135,6 +136,48 @@ TEST_F(GpuOcclusionTest, DepthOutsideTheWallIsUntouchedAndAsyncMatches) {
   ASSERT_TRUE((*gpu)->Collect(&async, &tag));
   EXPECT_EQ(tag, 7);
   EXPECT_EQ(Ids(async), Ids(sync));
+}
+
+TEST_F(GpuOcclusionTest, ImageSizeChangesAndHostStateIsRestored) {
+  const WallAndBox w = MakeWallAndBox();
+  ProjectorOptions options;
+  options.occlusion = true;
+  auto gpu = GpuProjector::Create(w.scene, options, context_);
+  ASSERT_TRUE(gpu) << gpu.error();
+  // A host render loop's state: its own framebuffer, viewport, depth and cull settings.
+  GLuint host_framebuffer = 0, host_color = 0;
+  glGenFramebuffers(1, &host_framebuffer);
+  glGenRenderbuffers(1, &host_color);
+  glBindRenderbuffer(GL_RENDERBUFFER, host_color);
+  glRenderbufferStorage(GL_RENDERBUFFER, GL_RGBA8, 16, 16);
+  glBindFramebuffer(GL_FRAMEBUFFER, host_framebuffer);
+  glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, host_color);
+  glViewport(1, 2, 13, 14);
+  glEnable(GL_CULL_FACE);
+  glDisable(GL_DEPTH_TEST);
+  glDepthFunc(GL_GREATER);
+
+  std::vector<ProjectedVertex> out;
+  for (int width : {640, 320, 1280, 640}) {
+    const Camera camera = Camera::FromHorizontalFov(width, width * 3 / 4, 90.0, 0.05, 50.0);
+    ASSERT_TRUE((*gpu)->Project(Pose3::Identity(), camera, &out));
+    EXPECT_EQ(Ids(out), w.visible_with_occlusion) << "width " << width;
+  }
+  GLint framebuffer = 0, viewport[4] = {0, 0, 0, 0}, depth_func = 0;
+  glGetIntegerv(GL_DRAW_FRAMEBUFFER_BINDING, &framebuffer);
+  glGetIntegerv(GL_VIEWPORT, viewport);
+  glGetIntegerv(GL_DEPTH_FUNC, &depth_func);
+  EXPECT_EQ(static_cast<GLuint>(framebuffer), host_framebuffer);
+  EXPECT_EQ(viewport[0], 1);
+  EXPECT_EQ(viewport[3], 14);
+  EXPECT_EQ(depth_func, GL_GREATER);
+  EXPECT_TRUE(glIsEnabled(GL_CULL_FACE));
+  EXPECT_FALSE(glIsEnabled(GL_DEPTH_TEST));
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  glDisable(GL_CULL_FACE);
+  glDepthFunc(GL_LESS);
+  glDeleteFramebuffers(1, &host_framebuffer);
+  glDeleteRenderbuffers(1, &host_color);
 }
 
 TEST_F(GpuOcclusionTest, AgreesWithCpuOnDefaultScene) {
