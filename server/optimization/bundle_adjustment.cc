@@ -84,7 +84,7 @@ int SolvePass(const Camera& camera, const BundleAdjustmentOptions& options,
     BaPoint& point = problem->points[observation.point_index];
     if (point.fixed && keyframe_fixed(observation.keyframe_index)) continue;  // nothing to move
     double* pose = (*poses)[observation.keyframe_index].data();
-    ceres_problem.AddResidualBlock(ReprojectionError::Create(camera, observation.uv, inv_sigma),
+    ceres_problem.AddResidualBlock(new AnalyticReprojectionError(camera, observation.uv, inv_sigma),
                                    robust ? &huber : nullptr, pose, point.position_world.data());
     if (!keyframe_used[observation.keyframe_index]) {
       keyframe_used[observation.keyframe_index] = true;

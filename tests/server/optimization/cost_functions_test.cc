@@ -82,6 +82,29 @@ TEST(ReprojectionErrorTest, GradientCheckerOnPoseManifold) {
   ExpectGradientsMatch(*cost, {&pose_manifold, nullptr}, {pose.data(), point.data()});
 }
 
+TEST(AnalyticReprojectionErrorTest, MatchesTheAutodiffFunctorAndNumericGradients) {
+  const Camera camera = testing::TestCamera();
+  const Eigen::Vector2d uv(300.0, 200.0);
+  std::unique_ptr<ceres::CostFunction> autodiff(ReprojectionError::Create(camera, uv, kInvSigma));
+  const AnalyticReprojectionError analytic(camera, uv, kInvSigma);
+  const auto pose = PoseToParameters(SomeCameraFromWorld());
+  const Eigen::Vector3d point(0.5, 0.2, 4.0);
+  const double* parameters[] = {pose.data(), point.data()};
+  double r_auto[2], r_analytic[2], j_auto_pose[14], j_auto_point[6], j_pose[14], j_point[6];
+  double* j_auto[] = {j_auto_pose, j_auto_point};
+  double* j_analytic[] = {j_pose, j_point};
+  ASSERT_TRUE(autodiff->Evaluate(parameters, r_auto, j_auto));
+  ASSERT_TRUE(analytic.Evaluate(parameters, r_analytic, j_analytic));
+  for (int i = 0; i < 2; ++i) EXPECT_NEAR(r_analytic[i], r_auto[i], 1e-12);
+  for (int i = 0; i < 14; ++i) EXPECT_NEAR(j_pose[i], j_auto_pose[i], 1e-9) << i;
+  for (int i = 0; i < 6; ++i) EXPECT_NEAR(j_point[i], j_auto_point[i], 1e-9) << i;
+  const PoseManifold pose_manifold;
+  ExpectGradientsMatch(analytic, {&pose_manifold, nullptr}, {pose.data(), point.data()});
+  const Eigen::Vector3d behind(0.5, 0.2, -4.0);
+  const double* behind_parameters[] = {pose.data(), behind.data()};
+  EXPECT_FALSE(analytic.Evaluate(behind_parameters, r_analytic, nullptr));
+}
+
 TEST(PoseOnlyReprojectionErrorTest, MatchesHandComputedResidualAndGradients) {
   const Camera camera = testing::TestCamera();
   const Pose3 pose = SomeCameraFromWorld();

@@ -1,0 +1,204 @@
+#include "accuracy_run.h"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <optional>
+#include <thread>
+#include <vector>
+
+#include "m2s/common/alignment.h"
+#include "m2s/slam/system.h"
+
+namespace m2s::bench {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+bool HasPose(slam::TrackingState state) {
+  return state == slam::TrackingState::kOk || state == slam::TrackingState::kRelocalized;
+}
+
+double Percentile(std::vector<double> values, double q) {
+  if (values.empty()) return 0.0;
+  std::sort(values.begin(), values.end());
+  const size_t index = std::min(values.size() - 1, static_cast<size_t>(q * values.size()));
+  return values[index];
+}
+
+struct Alignment {
+  Sim3 truth_from_estimate;
+  double rmse = -1.0;
+  double max = -1.0;
+};
+
+// Sim3 (Umeyama) alignment of estimated camera centres onto the true ones.
+std::optional<Alignment> AlignTrajectory(const std::vector<Eigen::Vector3d>& estimate,
+                                         const std::vector<Eigen::Vector3d>& truth) {
+  const std::optional<Sim3> sim3 = AlignPoints(estimate, truth, /*with_scale=*/true);
+  if (!sim3) return std::nullopt;
+  Alignment out{*sim3, 0.0, 0.0};
+  double sum = 0.0;
+  for (size_t i = 0; i < estimate.size(); ++i) {
+    const double e = ((*sim3) * estimate[i] - truth[i]).norm();
+    sum += e * e;
+    out.max = std::max(out.max, e);
+  }
+  out.rmse = std::sqrt(sum / estimate.size());
+  return out;
+}
+
+// Fills the trajectory and map metrics from the system's final state and the online poses.
+void Evaluate(const Scene& scene, const Trajectory& ground_truth, slam::System& system,
+              const std::vector<slam::TrackResult>& results, RunMetrics* m) {
+  std::vector<Eigen::Vector3d> estimate, truth;
+  for (const slam::TrajectoryEntry& entry : system.Trajectory()) {
+    if (!HasPose(entry.state) || entry.seq < 0 ||
+        entry.seq >= static_cast<int64_t>(ground_truth.size())) {
+      continue;
+    }
+    estimate.push_back(entry.world_from_camera.translation());
+    truth.push_back(ground_truth[entry.seq].world_from_camera.translation());
+  }
+  const std::optional<Alignment> final_alignment = AlignTrajectory(estimate, truth);
+  if (final_alignment) {
+    m->ate_rmse_m = final_alignment->rmse;
+    m->ate_max_m = final_alignment->max;
+    m->scale = final_alignment->truth_from_estimate.scale();
+    const slam::MapDelta map = system.FullMap();
+    std::vector<double> errors;
+    for (size_t i = 0; i < map.point_ids.size(); ++i) {
+      if (map.point_ids[i] >= scene.num_vertices()) continue;
+      const Eigen::Vector3d aligned =
+          final_alignment->truth_from_estimate * map.point_positions[i].cast<double>();
+      errors.push_back((aligned - scene.positions[map.point_ids[i]].cast<double>()).norm());
+    }
+    if (!errors.empty()) {
+      double sum = 0.0;
+      for (double e : errors) sum += e * e;
+      m->map_rmse_m = std::sqrt(sum / errors.size());
+      m->map_median_m = Percentile(errors, 0.5);
+    }
+  }
+  estimate.clear();
+  truth.clear();
+  for (const slam::TrackResult& r : results) {
+    if (!HasPose(r.state) || r.seq < 0 || r.seq >= static_cast<int64_t>(ground_truth.size())) continue;
+    estimate.push_back(r.world_from_camera.translation());
+    truth.push_back(ground_truth[r.seq].world_from_camera.translation());
+  }
+  if (const std::optional<Alignment> online = AlignTrajectory(estimate, truth)) {
+    m->ate_online_rmse_m = online->rmse;
+  }
+  const slam::SystemStats stats = system.Stats();
+  m->skipped = static_cast<int>(stats.frames_dropped_queue);
+  m->rejected = static_cast<int>(stats.frames_rejected);
+  m->relocalisations = static_cast<int>(stats.relocalisations);
+  m->loop_corrections = static_cast<int>(stats.loop_corrections);
+  m->keyframes = stats.keyframes;
+  m->map_points = stats.map_points;
+}
+
+// Counts tracked / initialisation / lost frames and the Track() times from ordered results.
+void CountResults(const std::vector<slam::TrackResult>& results, const std::vector<double>& times_ms,
+                  RunMetrics* m) {
+  bool initialised = false;
+  std::vector<double> track_ms, keyframe_ms;
+  double features = 0.0;
+  for (size_t i = 0; i < results.size(); ++i) {
+    const slam::TrackResult& r = results[i];
+    features += r.num_features;
+    if (HasPose(r.state)) {
+      initialised = true;
+      ++m->tracked;
+    } else if (!initialised) {
+      ++m->init_frames;
+    } else if (r.state == slam::TrackingState::kLost) {
+      ++m->lost;
+    }
+    const double ms = i < times_ms.size() ? times_ms[i] : r.tracking_ms;
+    if (initialised && HasPose(r.state)) (r.keyframe_created ? keyframe_ms : track_ms).push_back(ms);
+  }
+  m->mean_features = results.empty() ? 0.0 : features / results.size();
+  m->track_median_ms = Percentile(track_ms, 0.5);
+  m->track_p90_ms = Percentile(track_ms, 0.9);
+  m->keyframe_median_ms = Percentile(keyframe_ms, 0.5);
+}
+
+}  // namespace
+
+Expected<RunMetrics> RunAccuracy(const Scene& scene, const Sequence& sequence,
+                                 const RunConfig& config) {
+  Expected<Trajectory> ground_truth = sequence.trajectory.Resample(config.fps);
+  if (!ground_truth) return Status::Error(ground_truth.error());
+  const Camera camera = BenchCamera();
+  FrameSourceOptions source_options;
+  source_options.noise.budget = config.budget;
+  source_options.noise.seed = config.noise_seed;
+  if (config.noisy) {
+    source_options.noise.pixel_noise_sigma = config.noise_px;
+    source_options.noise.wrong_id_fraction = config.wrong_id_fraction;
+  }
+  Expected<std::unique_ptr<FrameSource>> source =
+      FrameSource::Create(scene, camera, *ground_truth, source_options);
+  if (!source) return Status::Error(source.error());
+
+  slam::Options options;
+  options.camera = camera;
+  options.deterministic = !config.realtime;
+  Expected<std::unique_ptr<slam::System>> created = slam::System::Create(options);
+  if (!created) return Status::Error(created.error());
+  slam::System& system = **created;
+
+  RunMetrics m;
+  m.sequence = sequence.name;
+  m.mode = std::string(config.realtime ? "realtime-" : "") + (config.noisy ? "noisy" : "noise-free");
+  m.fps = config.fps;
+  m.frames = static_cast<int>((*source)->size());
+  std::vector<slam::TrackResult> results;
+  std::vector<double> times_ms;
+  const auto start = Clock::now();
+
+  if (!config.realtime) {
+    slam::Frame frame;
+    for (size_t i = 0; i < (*source)->size(); ++i) {
+      if (Status s = (*source)->MakeFrame(i, &frame); !s) return Status::Error(s.message());
+      const auto t0 = Clock::now();
+      results.push_back(system.Track(frame));
+      times_ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
+    }
+  } else {
+    // Frames are rendered beforehand so the producer only paces and submits.
+    std::vector<slam::Frame> frames((*source)->size());
+    for (size_t i = 0; i < frames.size(); ++i) {
+      if (Status s = (*source)->MakeFrame(i, &frames[i]); !s) return Status::Error(s.message());
+    }
+    std::atomic<bool> producer_done{false};
+    std::thread consumer([&] {
+      slam::TrackResult result;
+      while (true) {
+        if (system.WaitForResult(&result, 0.5)) {
+          results.push_back(result);
+        } else if (producer_done.load()) {
+          break;
+        }
+      }
+    });
+    const auto t0 = Clock::now();
+    for (size_t i = 0; i < frames.size(); ++i) {
+      std::this_thread::sleep_until(t0 + std::chrono::duration_cast<Clock::duration>(
+                                             std::chrono::duration<double>(i / config.fps)));
+      system.Submit(std::move(frames[i]));
+    }
+    producer_done = true;
+    consumer.join();
+  }
+  m.wall_s = std::chrono::duration<double>(Clock::now() - start).count();
+  CountResults(results, times_ms, &m);
+  Evaluate(scene, *ground_truth, system, results, &m);
+  system.Shutdown();
+  return m;
+}
+
+}  // namespace m2s::bench

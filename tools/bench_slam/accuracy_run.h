@@ -1,0 +1,58 @@
+// One accuracy run of the SLAM system: a sequence at a frame rate, with or without feature
+// noise, either frame by frame (deterministic mode: mapping inline) or in real time (frames
+// submitted at the frame rate by the wall clock into the latest-wins queue, mapping threaded).
+//
+//   RunConfig config{.fps = 60, .noisy = true};
+//   Expected<RunMetrics> m = RunAccuracy(scene, sequence, config);
+#pragma once
+
+#include <string>
+
+#include "m2s/common/scene.h"
+#include "m2s/common/status.h"
+#include "sequence.h"
+
+namespace m2s::bench {
+
+struct RunConfig {
+  double fps = 30.0;
+  bool noisy = false;        // 0.5 px Gaussian noise + 1% wrong ids
+  bool realtime = false;     // wall-clock pacing into Submit(), threaded mapping
+  int budget = 0;            // features kept per frame (0: every visible vertex)
+  double noise_px = 0.5;
+  double wrong_id_fraction = 0.01;
+  uint64_t noise_seed = 1;
+};
+
+struct RunMetrics {
+  std::string sequence;
+  std::string mode;  // "noise-free", "noisy", "realtime-noise-free", "realtime-noisy"
+  double fps = 0.0;
+  int frames = 0;          // frames of the sequence at this rate
+  int tracked = 0;         // frames with a pose (kOk or kRelocalized)
+  int init_frames = 0;     // frames before the first tracked one
+  int lost = 0;            // frames reported kLost after initialisation
+  int rejected = 0;
+  int skipped = 0;         // dropped by the latest-wins queue (real-time mode)
+  int relocalisations = 0;
+  int loop_corrections = 0;
+  int keyframes = 0;
+  int map_points = 0;
+  double mean_features = 0.0;
+  double ate_rmse_m = -1.0;         // final trajectory (after BA / drift correction), Sim3 aligned
+  double ate_max_m = -1.0;
+  double ate_online_rmse_m = -1.0;  // poses as returned by Track(), Sim3 aligned
+  double map_rmse_m = -1.0;         // map points vs true vertices, with the trajectory's alignment
+  double map_median_m = -1.0;
+  double scale = 0.0;               // Sim3 scale world_true_from_estimate
+  double track_median_ms = 0.0;     // Track() wall time on non-keyframe frames
+  double track_p90_ms = 0.0;
+  double keyframe_median_ms = 0.0;  // Track() wall time on keyframe frames (deterministic:
+                                    // includes the inline local mapping and local BA)
+  double wall_s = 0.0;
+};
+
+Expected<RunMetrics> RunAccuracy(const Scene& scene, const Sequence& sequence,
+                                 const RunConfig& config);
+
+}  // namespace m2s::bench

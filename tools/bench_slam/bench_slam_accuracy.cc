@@ -1,0 +1,149 @@
+// SLAM accuracy benchmark: ATE (Sim3 aligned), lost / skipped frames, map error and Track()
+// times on the default scene for the default trajectory and generated room sequences, at
+// several frame rates, with noise-free features, noisy features (0.5 px + 1% wrong ids) and in
+// real time (wall-clock pacing into the latest-wins queue).
+//
+//   bench_slam_accuracy                               # everything (about 25 min)
+//   bench_slam_accuracy --fps 30 --duration 20 --modes noise-free --sequences default
+//   bench_slam_accuracy --json results.json
+#include <algorithm>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include "accuracy_run.h"
+
+namespace {
+
+using m2s::bench::RunMetrics;
+
+constexpr double kNoiseFreeAteBoundM = 0.001;
+constexpr double kNoisyAteBoundM = 0.005;
+
+bool Passes(const RunMetrics& m) {
+  const bool noisy = m.mode.find("noisy") != std::string::npos;
+  return m.ate_rmse_m >= 0.0 && m.ate_rmse_m < (noisy ? kNoisyAteBoundM : kNoiseFreeAteBoundM) &&
+         m.lost == 0;
+}
+
+nlohmann::json ToJson(const RunMetrics& m) {
+  return {{"sequence", m.sequence},       {"mode", m.mode},
+          {"fps", m.fps},                 {"frames", m.frames},
+          {"tracked", m.tracked},         {"init_frames", m.init_frames},
+          {"lost", m.lost},               {"rejected", m.rejected},
+          {"skipped", m.skipped},         {"relocalisations", m.relocalisations},
+          {"loop_corrections", m.loop_corrections},
+          {"keyframes", m.keyframes},     {"map_points", m.map_points},
+          {"mean_features", m.mean_features},
+          {"ate_rmse_m", m.ate_rmse_m},   {"ate_max_m", m.ate_max_m},
+          {"ate_online_rmse_m", m.ate_online_rmse_m},
+          {"map_rmse_m", m.map_rmse_m},   {"map_median_m", m.map_median_m},
+          {"scale", m.scale},             {"track_median_ms", m.track_median_ms},
+          {"track_p90_ms", m.track_p90_ms},
+          {"keyframe_median_ms", m.keyframe_median_ms},
+          {"wall_s", m.wall_s},           {"pass", Passes(m)}};
+}
+
+void PrintHeader() {
+  std::printf("%-10s %-20s %5s %6s %6s %5s %5s %6s %4s %5s %10s %10s %10s %10s %7s %7s %7s %5s\n",
+              "sequence", "mode", "fps", "frames", "track", "init", "lost", "skip", "KFs", "feat",
+              "ATE[mm]", "ATEonl[mm]", "ATEmax[mm]", "map[mm]", "trk[ms]", "p90[ms]", "KF[ms]",
+              "pass");
+}
+
+void PrintRow(const RunMetrics& m) {
+  std::printf(
+      "%-10s %-20s %5.0f %6d %6d %5d %5d %6d %4d %5.0f %10.4f %10.4f %10.4f %10.4f %7.3f %7.3f "
+      "%7.2f %5s\n",
+      m.sequence.c_str(), m.mode.c_str(), m.fps, m.frames, m.tracked, m.init_frames, m.lost,
+      m.skipped, m.keyframes, m.mean_features, 1e3 * m.ate_rmse_m, 1e3 * m.ate_online_rmse_m,
+      1e3 * m.ate_max_m, 1e3 * m.map_rmse_m, m.track_median_ms, m.track_p90_ms,
+      m.keyframe_median_ms, Passes(m) ? "yes" : "NO");
+  std::fflush(stdout);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"Mesh2SLAM accuracy benchmark (ATE, lost/skipped frames, map error)"};
+  std::vector<double> fps = {30, 60, 75, 120};
+  std::vector<std::string> modes = {"noise-free", "noisy", "realtime"};
+  std::vector<std::string> sequences = {"default", "room-s2", "room-s3"};
+  double duration_s = 0.0;
+  int budget = 0;
+  std::string json_path;
+  app.add_option("--fps", fps, "frame rates")->check(CLI::PositiveNumber);
+  app.add_option("--modes", modes, "noise-free, noisy, realtime, realtime-noisy")
+      ->check(CLI::IsMember({"noise-free", "noisy", "realtime", "realtime-noisy"}));
+  app.add_option("--sequences", sequences, "default and/or room-s<seed>");
+  app.add_option("--duration", duration_s, "sequence length in seconds (0: 60 s)")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--budget", budget, "features kept per frame (0: all visible vertices)")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--json", json_path, "also write the results as JSON to this file");
+  CLI11_PARSE(app, argc, argv);
+
+  std::vector<uint64_t> seeds;
+  for (const std::string& name : sequences) {
+    if (name == "default") continue;
+    if (name.rfind("room-s", 0) != 0) {
+      std::cerr << "bench_slam_accuracy: unknown sequence '" << name << "' (default, room-s<seed>)\n";
+      return 2;
+    }
+    try {
+      seeds.push_back(std::stoull(name.substr(6)));
+    } catch (const std::exception&) {
+      std::cerr << "bench_slam_accuracy: bad seed in sequence name '" << name << "'\n";
+      return 2;
+    }
+  }
+  m2s::Expected<std::vector<m2s::bench::Sequence>> made = m2s::bench::MakeSequences(seeds, duration_s);
+  if (!made) {
+    std::cerr << "bench_slam_accuracy: " << made.error() << "\n";
+    return 1;
+  }
+  const bool want_default =
+      std::find(sequences.begin(), sequences.end(), "default") != sequences.end();
+  const m2s::Scene scene = m2s::MakeDefaultScene();
+
+  nlohmann::json rows = nlohmann::json::array();
+  bool all_pass = true;
+  PrintHeader();
+  for (const m2s::bench::Sequence& sequence : *made) {
+    if (sequence.name == "default" && !want_default) continue;
+    for (const std::string& mode : modes) {
+      for (double rate : fps) {
+        m2s::bench::RunConfig config;
+        config.fps = rate;
+        config.noisy = mode == "noisy" || mode == "realtime-noisy";
+        config.realtime = mode.rfind("realtime", 0) == 0;
+        config.budget = budget;
+        m2s::Expected<RunMetrics> metrics = m2s::bench::RunAccuracy(scene, sequence, config);
+        if (!metrics) {
+          std::cerr << "bench_slam_accuracy: " << sequence.name << " " << mode << " " << rate
+                    << " fps: " << metrics.error() << "\n";
+          return 1;
+        }
+        PrintRow(*metrics);
+        all_pass = all_pass && Passes(*metrics);
+        rows.push_back(ToJson(*metrics));
+      }
+    }
+  }
+  std::printf("all within bounds (noise-free ATE < 1 mm, noisy < 5 mm, no lost frames): %s\n",
+              all_pass ? "yes" : "NO");
+  if (!json_path.empty()) {
+    std::ofstream out(json_path);
+    out << rows.dump(2) << "\n";
+    if (!out) {
+      std::cerr << "bench_slam_accuracy: cannot write " << json_path << "\n";
+      return 1;
+    }
+  }
+  return 0;
+}
