@@ -79,7 +79,10 @@ Status Map::Save(const std::string& path, const Camera& camera) const {
   w.Put(static_cast<int32_t>(camera.width));
   w.Put(static_cast<int32_t>(camera.height));
   for (double v : {camera.fx, camera.fy, camera.cx, camera.cy}) w.Put(v);
-  w.Put(static_cast<uint32_t>(next_keyframe_id_));
+  KeyframeId next_id = next_keyframe_id_;
+  if (!data_.keyframes().empty())
+    next_id = std::max(next_id, data_.keyframes().rbegin()->first + 1);
+  w.Put(static_cast<uint32_t>(next_id));
   w.Put(static_cast<uint64_t>(data_.keyframes().size()));
   for (const auto& [id, kf] : data_.keyframes()) {
     w.Put(static_cast<uint32_t>(id));

@@ -18,6 +18,8 @@ constexpr int kFixedKeyframesPerWindow = 2;
 constexpr int kRedundancyObservers = 3;
 // Covisibility needed to count as a neighbour in the local window.
 constexpr int kMinCovisiblePoints = 15;
+// Maps with at most this many keyframes get a global BA per keyframe instead of a local one.
+constexpr int kGlobalBaKeyframes = 10;
 
 BundleAdjustmentOptions MakeBaOptions(const Options& options, int max_iterations) {
   BundleAdjustmentOptions ba;
@@ -92,10 +94,15 @@ void LocalMapper::Process(const KeyframeCandidate& c) {
     corrected = decision == DriftDecision::kCorrected;
   }
   TriangulateNewPoints(c.id);
+  const size_t num_keyframes = map_->Read([](const MapData& m) { return m.keyframes().size(); });
   if (corrected) {
     GlobalBundleAdjust(/*max_iterations=*/15);
     std::lock_guard<std::mutex> lock(stats_mutex_);
     ++stats_.loop_corrections;
+  } else if (num_keyframes <= static_cast<size_t>(kGlobalBaKeyframes)) {
+    // A young map is refined as a whole: the low-parallax initial structure must not be
+    // frozen into the keyframes that later windows hold fixed.
+    GlobalBundleAdjust(/*max_iterations=*/10);
   } else {
     LocalBundleAdjust(c.id);
   }

@@ -1,0 +1,142 @@
+// Two-view initialisation on exact synthetic views: a general 3-D scene (essential matrix), a
+// planar one (homography), and refusal under pure rotation.
+#include "tracking/initializer.h"
+
+#include <random>
+
+#include <gtest/gtest.h>
+
+namespace m2s::slam {
+namespace {
+
+struct Views {
+  std::vector<Eigen::Vector3d> points;  // world = camera 0
+  SortedFeatures view0, view1;
+};
+
+SortedFeatures Project(const Camera& camera, const Pose3& world_from_camera,
+                       const std::vector<Eigen::Vector3d>& points) {
+  SortedFeatures f;
+  const Pose3 camera_from_world = world_from_camera.Inverse();
+  for (size_t i = 0; i < points.size(); ++i) {
+    const Eigen::Vector3d pc = camera_from_world * points[i];
+    if (pc.z() <= camera.near) continue;
+    const Eigen::Vector2d uv = camera.Project(pc);
+    if (!camera.InImage(uv.x(), uv.y())) continue;
+    f.ids.push_back(static_cast<VertexId>(i));
+    f.uvs.push_back(uv);
+  }
+  return f;
+}
+
+Views MakeViews(const Camera& camera, const Pose3& world_from_camera1, bool planar, int n = 600) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> xy(-2.0, 2.0), depth(3.0, 7.0);
+  Views v;
+  for (int i = 0; i < n; ++i) {
+    const double x = xy(rng), y = xy(rng);
+    // The plane is tilted (z = 4 + 0.3 x) so the homography is not a pure scaling.
+    v.points.emplace_back(x, y, planar ? 4.0 + 0.3 * x : depth(rng));
+  }
+  v.view0 = Project(camera, Pose3::Identity(), v.points);
+  v.view1 = Project(camera, world_from_camera1, v.points);
+  return v;
+}
+
+Options TestOptions() {
+  Options o;
+  o.camera = Camera();
+  return o;
+}
+
+Pose3 Motion(double tx, double yaw_deg) {
+  return Pose3(
+      Eigen::Quaterniond(Eigen::AngleAxisd(yaw_deg * M_PI / 180.0, Eigen::Vector3d::UnitY())),
+      Eigen::Vector3d(tx, 0.05, 0.1));
+}
+
+// Checks the initial map against the truth up to the monocular scale.
+void ExpectMatchesTruth(const InitialMap& map, const Views& views,
+                        const Pose3& world_from_camera1) {
+  EXPECT_TRUE(map.first.world_from_camera.translation().isZero(1e-12));
+  const Pose3& est = map.second.world_from_camera;
+  const double scale = world_from_camera1.translation().norm() / est.translation().norm();
+  EXPECT_LT(RotationAngle(est.rotation().conjugate() * world_from_camera1.rotation()), 1e-5);
+  EXPECT_LT((est.translation() * scale - world_from_camera1.translation()).norm(), 1e-5);
+  ASSERT_GE(map.points.size(), 100u);
+  std::vector<double> depths;
+  for (size_t i = 0; i < map.points.size(); ++i) {
+    const Eigen::Vector3d& truth = views.points[map.point_ids[i]];
+    EXPECT_LT((map.points[i] * scale - truth).norm(), 1e-4) << "point " << map.point_ids[i];
+    depths.push_back(map.points[i].z());
+  }
+  std::nth_element(depths.begin(), depths.begin() + depths.size() / 2, depths.end());
+  EXPECT_NEAR(depths[depths.size() / 2], 1.0, 1e-9);  // scale: median depth 1
+}
+
+TEST(Initializer, GeneralSceneUsesTheEssentialMatrix) {
+  const Options options = TestOptions();
+  const Pose3 motion = Motion(0.4, 4.0);
+  const Views views = MakeViews(options.camera, motion, /*planar=*/false);
+  Initializer init(options);
+  EXPECT_FALSE(init.Process(0, 0.0, views.view0).has_value());
+  const auto map = init.Process(1, 0.1, views.view1);
+  ASSERT_TRUE(map.has_value()) << init.last_failure();
+  EXPECT_FALSE(map->used_homography);
+  EXPECT_EQ(map->first.seq, 0);
+  EXPECT_EQ(map->second.seq, 1);
+  ExpectMatchesTruth(*map, views, motion);
+}
+
+TEST(Initializer, PlanarSceneUsesTheHomography) {
+  const Options options = TestOptions();
+  const Pose3 motion = Motion(0.5, -3.0);
+  const Views views = MakeViews(options.camera, motion, /*planar=*/true);
+  std::string why;
+  const auto two_view = ReconstructTwoView(options, views.view0, views.view1, &why);
+  ASSERT_TRUE(two_view.has_value()) << why;
+  EXPECT_TRUE(two_view->used_homography);
+  Initializer init(options);
+  init.Process(0, 0.0, views.view0);
+  const auto map = init.Process(1, 0.1, views.view1);
+  ASSERT_TRUE(map.has_value()) << init.last_failure();
+  ExpectMatchesTruth(*map, views, motion);
+}
+
+TEST(Initializer, RefusesPureRotationAndTinyParallax) {
+  const Options options = TestOptions();
+  Initializer init(options);
+  const Views first = MakeViews(options.camera, Pose3::Identity(), false);
+  EXPECT_FALSE(init.Process(0, 0.0, first.view0).has_value());
+  for (int k = 1; k <= 20; ++k) {
+    const Pose3 rotation(Eigen::Quaterniond(Eigen::AngleAxisd(
+                             0.5 * k * M_PI / 180.0, Eigen::Vector3d(0.2, 1.0, 0.1).normalized())),
+                         Eigen::Vector3d::Zero());
+    const Views views = MakeViews(options.camera, rotation, false);
+    EXPECT_FALSE(init.Process(k, 0.1 * k, views.view1).has_value()) << "rotation step " << k;
+  }
+  // A 2 mm translation at 3-7 m depth: far below one degree of parallax.
+  const Views tiny = MakeViews(options.camera, Motion(0.002, 1.0), false);
+  std::string why;
+  EXPECT_FALSE(ReconstructTwoView(options, tiny.view0, tiny.view1, &why).has_value());
+  EXPECT_FALSE(why.empty());
+}
+
+TEST(Initializer, ToleratesWrongIds) {
+  const Options options = TestOptions();
+  const Pose3 motion = Motion(0.4, 4.0);
+  Views views = MakeViews(options.camera, motion, false);
+  // 3% of the second view's features get the uv of another feature (wrong ids).
+  for (size_t i = 0; i + 7 < views.view1.size(); i += 33)
+    std::swap(views.view1.uvs[i], views.view1.uvs[i + 7]);
+  Initializer init(options);
+  init.Process(0, 0.0, views.view0);
+  const auto map = init.Process(1, 0.1, views.view1);
+  ASSERT_TRUE(map.has_value()) << init.last_failure();
+  const Pose3& est = map->second.world_from_camera;
+  EXPECT_LT(RotationAngle(est.rotation().conjugate() * motion.rotation()), 1e-4);
+  EXPECT_LT((est.translation().normalized() - motion.translation().normalized()).norm(), 1e-3);
+}
+
+}  // namespace
+}  // namespace m2s::slam
