@@ -1,7 +1,111 @@
-// Session lifecycle of the real m2s_xr_client driven by the simulated runtime's script, and the
-// LCM mode against a separate m2s_server in a private network namespace.
+// Session lifecycle of the real m2s_xr_client driven by the simulated runtime's script, the
+// GPU projector on the app's own context, and the LCM mode against a separate m2s_server
+// inside a private network namespace.
+#include <unistd.h>
+
+#include "m2s/common/evaluation.h"
 #include "xr_client_test_util.h"
 
 namespace m2s::xr_test {
-namespace {}  // namespace
+namespace {
+
+// Light settings: these tests are about behaviour, not accuracy.
+const std::string kLight = " --projector cpu --budget 1000 --no-mesh";
+
+std::string Client(const fs::path& dir, const std::string& script, const std::string& args) {
+  return RuntimeEnv(dir, dir / "head.tum", script, "") + " " + kBin + "/m2s_xr_client --out " +
+         Quote((dir / "out").string()) + " " + args;
+}
+
+bool HasState(const nlohmann::json& metrics, const std::string& state) {
+  for (const auto& s : metrics["session_states"]) {
+    if (s == state) return true;
+  }
+  return false;
+}
+
+TEST(XrClientLifecycle, FocusLossHiddenSessionLossControlsAndRuntimeExit) {
+  const fs::path dir = TestDir();
+  WritePlayedTrajectory(dir / "head.tum", 5.0);
+  // The runtime ends the session at frame 200; no --frames.
+  const int rc = RunBounded(Client(dir, "focus_loss@40:20,hide@70:10,session_loss@100,exit@200",
+                                   "--events overlay@50,overlay@60,reset@150" + kLight),
+                            120, dir / "log.txt");
+  ASSERT_EQ(rc, 0) << ReadText(dir / "log.txt");
+  const nlohmann::json report = ReadJson(dir / "runtime_report.json");
+  ExpectCleanRuntimeReport(report);
+  EXPECT_EQ(report["sessions_created"], 2);  // a new session after the loss
+  EXPECT_EQ(report["frames_waited"], 200);
+  const nlohmann::json metrics = ReadJson(dir / "out" / "xr_metrics.json");
+  EXPECT_EQ(metrics["openxr_sessions"], 2);
+  EXPECT_EQ(metrics["slam_sessions"], 2);
+  EXPECT_EQ(metrics["overlay_toggles"], 2);
+  for (const char* state :
+       {"XR_SESSION_STATE_VISIBLE", "XR_SESSION_STATE_FOCUSED", "XR_SESSION_STATE_LOSS_PENDING",
+        "XR_SESSION_STATE_STOPPING", "XR_SESSION_STATE_EXITING"}) {
+    EXPECT_TRUE(HasState(metrics, state)) << state;
+  }
+  // Frames are projected only while the session is visible: not while hidden (10 frames), not
+  // in the SYNCHRONIZED frames after each session start, not during the loss.
+  EXPECT_LT(metrics["frames_sent"].get<int>(), 190);
+  EXPECT_GT(metrics["frames_sent"].get<int>(), 150);
+  EXPECT_TRUE(fs::exists(dir / "out" / "trajectory.tum"));
+}
+
+TEST(XrClientLifecycle, InstanceLossLeavesCleanly) {
+  const fs::path dir = TestDir();
+  WritePlayedTrajectory(dir / "head.tum", 3.0);
+  const int rc = RunBounded(Client(dir, "instance_loss@60", kLight), 120, dir / "log.txt");
+  ASSERT_EQ(rc, 0) << ReadText(dir / "log.txt");
+  const nlohmann::json report = ReadJson(dir / "runtime_report.json");
+  ExpectCleanRuntimeReport(report);
+  EXPECT_EQ(report["instance_lost"], true);
+  const nlohmann::json metrics = ReadJson(dir / "out" / "xr_metrics.json");
+  EXPECT_EQ(metrics["instance_lost"], true);
+  EXPECT_TRUE(HasState(metrics, "INSTANCE_LOST"));
+}
+
+TEST(XrClientLifecycle, GpuProjectorOnTheAppsContext) {
+  const fs::path dir = TestDir();
+  WritePlayedTrajectory(dir / "head.tum", 2.0);
+  const int rc =
+      RunBounded(Client(dir, "", "--projector gpu --no-mesh --frames 30"), 120, dir / "log.txt");
+  ASSERT_EQ(rc, 0) << ReadText(dir / "log.txt");
+  ExpectCleanRuntimeReport(ReadJson(dir / "runtime_report.json"));
+  const nlohmann::json metrics = ReadJson(dir / "out" / "xr_metrics.json");
+  EXPECT_EQ(metrics["projector"], "gpu");
+  EXPECT_EQ(metrics["frames"], 30);
+  EXPECT_GE(metrics["frames_sent"].get<int>(), 28);
+}
+
+TEST(XrClientLifecycle, OverLcmToASeparateServer) {
+  if (std::system("unshare -rn true > /dev/null 2>&1") != 0) {
+    GTEST_SKIP() << "network namespaces (unshare -rn) are not permitted here";
+  }
+  const std::string server = kBin + "/m2s_server";
+  if (access(server.c_str(), X_OK) != 0) GTEST_SKIP() << "m2s_server is not built";
+  const fs::path dir = TestDir();
+  const Trajectory played = WritePlayedTrajectory(dir / "head.tum", 4.5);
+  const std::string url = "udpm://239.255.76.67:7667?ttl=0";
+  // Loopback multicast inside a private network namespace: nothing leaves this test.
+  const std::string script = "ip link set lo up && ip route add 224.0.0.0/4 dev lo && " + server +
+                             " --lcm-url " + Quote(url) + " > " +
+                             Quote((dir / "server.txt").string()) + " 2>&1 & pid=$!; " +
+                             Client(dir, "", "--lcm-url " + Quote(url) + " --frames 300" + kLight) +
+                             "; rc=$?; kill -INT $pid; wait $pid; exit $rc";
+  const int rc = RunBounded("unshare -rn sh -c " + Quote(script), 180, dir / "log.txt");
+  ASSERT_EQ(rc, 0) << ReadText(dir / "log.txt") << ReadText(dir / "server.txt");
+  ExpectCleanRuntimeReport(ReadJson(dir / "runtime_report.json"));
+  auto estimate = ReadTum((dir / "out" / "trajectory.tum").string());
+  ASSERT_TRUE(estimate.ok()) << estimate.error();
+  auto reference = InterpolateReferenceAt(played, *estimate);
+  ASSERT_TRUE(reference.ok()) << reference.error();
+  auto eval = EvaluateTrajectory(*reference, *estimate);
+  ASSERT_TRUE(eval.ok()) << eval.error();
+  EXPECT_LT(eval->ate.rmse, 0.05);
+  EXPECT_GT(eval->matches.size(), 100u);
+  EXPECT_EQ(ReadJson(dir / "out" / "xr_metrics.json")["transport"], "lcm");
+}
+
+}  // namespace
 }  // namespace m2s::xr_test
