@@ -38,15 +38,9 @@ uniform vec2 u_depth_size;        // depth buffer width, height in texels
 uniform vec2 u_bias;              // relative, absolute (metres)
 #endif
 
-shared uint s_count;
-shared uint s_base;
-
 void main() {
-  uint local_index = gl_LocalInvocationIndex;
-  if (local_index == 0u) s_count = 0u;
-  barrier();
   uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
-  uint id = group * 256u + local_index;
+  uint id = group * 256u + gl_LocalInvocationIndex;
   bool visible = false;
   float u = 0.0, v = 0.0, z = 0.0;
   if (id < u_num_vertices) {
@@ -79,12 +73,9 @@ void main() {
     }
 #endif
   }
-  uint slot = 0u;
-  if (visible) slot = atomicAdd(s_count, 1u);
-  barrier();
-  if (local_index == 0u) s_base = atomicAdd(count, s_count);
-  barrier();
-  if (visible) features[s_base + slot] = Feature(id, u, v, z);
+  // One atomic per visible vertex on a uniform address: GPU compilers aggregate these per
+  // subgroup themselves (see gpu_projector.h, "How it runs").
+  if (visible) features[atomicAdd(count, 1u)] = Feature(id, u, v, z);
 }
 )";
 
