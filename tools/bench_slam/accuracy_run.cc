@@ -84,7 +84,8 @@ void Evaluate(const Scene& scene, const Trajectory& ground_truth, slam::System& 
   estimate.clear();
   truth.clear();
   for (const slam::TrackResult& r : results) {
-    if (!HasPose(r.state) || r.seq < 0 || r.seq >= static_cast<int64_t>(ground_truth.size())) continue;
+    if (!HasPose(r.state) || r.seq < 0 || r.seq >= static_cast<int64_t>(ground_truth.size()))
+      continue;
     estimate.push_back(r.world_from_camera.translation());
     truth.push_back(ground_truth[r.seq].world_from_camera.translation());
   }
@@ -101,8 +102,8 @@ void Evaluate(const Scene& scene, const Trajectory& ground_truth, slam::System& 
 }
 
 // Counts tracked / initialisation / lost frames and the Track() times from ordered results.
-void CountResults(const std::vector<slam::TrackResult>& results, const std::vector<double>& times_ms,
-                  RunMetrics* m) {
+void CountResults(const std::vector<slam::TrackResult>& results,
+                  const std::vector<double>& times_ms, RunMetrics* m) {
   bool initialised = false;
   std::vector<double> track_ms, keyframe_ms;
   double features = 0.0;
@@ -118,7 +119,8 @@ void CountResults(const std::vector<slam::TrackResult>& results, const std::vect
       ++m->lost;
     }
     const double ms = i < times_ms.size() ? times_ms[i] : r.tracking_ms;
-    if (initialised && HasPose(r.state)) (r.keyframe_created ? keyframe_ms : track_ms).push_back(ms);
+    if (initialised && HasPose(r.state))
+      (r.keyframe_created ? keyframe_ms : track_ms).push_back(ms);
   }
   m->mean_features = results.empty() ? 0.0 : features / results.size();
   m->track_median_ms = Percentile(track_ms, 0.5);
@@ -135,6 +137,7 @@ Expected<RunMetrics> RunAccuracy(const Scene& scene, const Sequence& sequence,
   const Camera camera = BenchCamera();
   FrameSourceOptions source_options;
   source_options.noise.budget = config.budget;
+  source_options.vertex_stride = config.vertex_stride;
   source_options.noise.seed = config.noise_seed;
   if (config.noisy) {
     source_options.noise.pixel_noise_sigma = config.noise_px;
@@ -153,7 +156,8 @@ Expected<RunMetrics> RunAccuracy(const Scene& scene, const Sequence& sequence,
 
   RunMetrics m;
   m.sequence = sequence.name;
-  m.mode = std::string(config.realtime ? "realtime-" : "") + (config.noisy ? "noisy" : "noise-free");
+  m.mode =
+      std::string(config.realtime ? "realtime-" : "") + (config.noisy ? "noisy" : "noise-free");
   m.fps = config.fps;
   m.frames = static_cast<int>((*source)->size());
   std::vector<slam::TrackResult> results;

@@ -16,9 +16,10 @@ namespace m2s::bench {
 
 struct RunConfig {
   double fps = 30.0;
-  bool noisy = false;        // 0.5 px Gaussian noise + 1% wrong ids
-  bool realtime = false;     // wall-clock pacing into Submit(), threaded mapping
-  int budget = 0;            // features kept per frame (0: every visible vertex)
+  bool noisy = false;     // 0.5 px Gaussian noise + 1% wrong ids
+  bool realtime = false;  // wall-clock pacing into Submit(), threaded mapping
+  int budget = 0;         // features kept per frame (0: every visible vertex)
+  int vertex_stride = 1;  // use only vertices with id % vertex_stride == 0
   double noise_px = 0.5;
   double wrong_id_fraction = 0.01;
   uint64_t noise_seed = 1;
@@ -28,24 +29,24 @@ struct RunMetrics {
   std::string sequence;
   std::string mode;  // "noise-free", "noisy", "realtime-noise-free", "realtime-noisy"
   double fps = 0.0;
-  int frames = 0;          // frames of the sequence at this rate
-  int tracked = 0;         // frames with a pose (kOk or kRelocalized)
-  int init_frames = 0;     // frames before the first tracked one
-  int lost = 0;            // frames reported kLost after initialisation
+  int frames = 0;       // frames of the sequence at this rate
+  int tracked = 0;      // frames with a pose (kOk or kRelocalized)
+  int init_frames = 0;  // frames before the first tracked one
+  int lost = 0;         // frames reported kLost after initialisation
   int rejected = 0;
-  int skipped = 0;         // dropped by the latest-wins queue (real-time mode)
+  int skipped = 0;  // dropped by the latest-wins queue (real-time mode)
   int relocalisations = 0;
   int loop_corrections = 0;
   int keyframes = 0;
   int map_points = 0;
   double mean_features = 0.0;
-  double ate_rmse_m = -1.0;         // final trajectory (after BA / drift correction), Sim3 aligned
+  double ate_rmse_m = -1.0;  // final trajectory (after BA / drift correction), Sim3 aligned
   double ate_max_m = -1.0;
   double ate_online_rmse_m = -1.0;  // poses as returned by Track(), Sim3 aligned
   double map_rmse_m = -1.0;         // map points vs true vertices, with the trajectory's alignment
   double map_median_m = -1.0;
-  double scale = 0.0;               // Sim3 scale world_true_from_estimate
-  double track_median_ms = 0.0;     // Track() wall time on non-keyframe frames
+  double scale = 0.0;            // Sim3 scale world_true_from_estimate
+  double track_median_ms = 0.0;  // Track() wall time on non-keyframe frames
   double track_p90_ms = 0.0;
   double keyframe_median_ms = 0.0;  // Track() wall time on keyframe frames (deterministic:
                                     // includes the inline local mapping and local BA)

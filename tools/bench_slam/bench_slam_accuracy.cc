@@ -32,21 +32,31 @@ bool Passes(const RunMetrics& m) {
 }
 
 nlohmann::json ToJson(const RunMetrics& m) {
-  return {{"sequence", m.sequence},       {"mode", m.mode},
-          {"fps", m.fps},                 {"frames", m.frames},
-          {"tracked", m.tracked},         {"init_frames", m.init_frames},
-          {"lost", m.lost},               {"rejected", m.rejected},
-          {"skipped", m.skipped},         {"relocalisations", m.relocalisations},
+  return {{"sequence", m.sequence},
+          {"mode", m.mode},
+          {"fps", m.fps},
+          {"frames", m.frames},
+          {"tracked", m.tracked},
+          {"init_frames", m.init_frames},
+          {"lost", m.lost},
+          {"rejected", m.rejected},
+          {"skipped", m.skipped},
+          {"relocalisations", m.relocalisations},
           {"loop_corrections", m.loop_corrections},
-          {"keyframes", m.keyframes},     {"map_points", m.map_points},
+          {"keyframes", m.keyframes},
+          {"map_points", m.map_points},
           {"mean_features", m.mean_features},
-          {"ate_rmse_m", m.ate_rmse_m},   {"ate_max_m", m.ate_max_m},
+          {"ate_rmse_m", m.ate_rmse_m},
+          {"ate_max_m", m.ate_max_m},
           {"ate_online_rmse_m", m.ate_online_rmse_m},
-          {"map_rmse_m", m.map_rmse_m},   {"map_median_m", m.map_median_m},
-          {"scale", m.scale},             {"track_median_ms", m.track_median_ms},
+          {"map_rmse_m", m.map_rmse_m},
+          {"map_median_m", m.map_median_m},
+          {"scale", m.scale},
+          {"track_median_ms", m.track_median_ms},
           {"track_p90_ms", m.track_p90_ms},
           {"keyframe_median_ms", m.keyframe_median_ms},
-          {"wall_s", m.wall_s},           {"pass", Passes(m)}};
+          {"wall_s", m.wall_s},
+          {"pass", Passes(m)}};
 }
 
 void PrintHeader() {
@@ -76,6 +86,7 @@ int main(int argc, char** argv) {
   std::vector<std::string> sequences = {"default", "room-s2", "room-s3"};
   double duration_s = 0.0;
   int budget = 0;
+  int vertex_stride = 1;
   std::string json_path;
   app.add_option("--fps", fps, "frame rates")->check(CLI::PositiveNumber);
   app.add_option("--modes", modes, "noise-free, noisy, realtime, realtime-noisy")
@@ -85,6 +96,9 @@ int main(int argc, char** argv) {
       ->check(CLI::NonNegativeNumber);
   app.add_option("--budget", budget, "features kept per frame (0: all visible vertices)")
       ->check(CLI::NonNegativeNumber);
+  app.add_option("--vertex-stride", vertex_stride,
+                 "use only vertices with id % stride == 0 (a consistent, sparser scene)")
+      ->check(CLI::PositiveNumber);
   app.add_option("--json", json_path, "also write the results as JSON to this file");
   CLI11_PARSE(app, argc, argv);
 
@@ -92,7 +106,8 @@ int main(int argc, char** argv) {
   for (const std::string& name : sequences) {
     if (name == "default") continue;
     if (name.rfind("room-s", 0) != 0) {
-      std::cerr << "bench_slam_accuracy: unknown sequence '" << name << "' (default, room-s<seed>)\n";
+      std::cerr << "bench_slam_accuracy: unknown sequence '" << name
+                << "' (default, room-s<seed>)\n";
       return 2;
     }
     try {
@@ -102,7 +117,8 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
-  m2s::Expected<std::vector<m2s::bench::Sequence>> made = m2s::bench::MakeSequences(seeds, duration_s);
+  m2s::Expected<std::vector<m2s::bench::Sequence>> made =
+      m2s::bench::MakeSequences(seeds, duration_s);
   if (!made) {
     std::cerr << "bench_slam_accuracy: " << made.error() << "\n";
     return 1;
@@ -123,6 +139,7 @@ int main(int argc, char** argv) {
         config.noisy = mode == "noisy" || mode == "realtime-noisy";
         config.realtime = mode.rfind("realtime", 0) == 0;
         config.budget = budget;
+        config.vertex_stride = vertex_stride;
         m2s::Expected<RunMetrics> metrics = m2s::bench::RunAccuracy(scene, sequence, config);
         if (!metrics) {
           std::cerr << "bench_slam_accuracy: " << sequence.name << " " << mode << " " << rate

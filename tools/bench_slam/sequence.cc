@@ -27,16 +27,18 @@ Expected<std::vector<Sequence>> MakeSequences(const std::vector<uint64_t>& room_
   return sequences;
 }
 
-Expected<std::unique_ptr<FrameSource>> FrameSource::Create(const Scene& scene,
-                                                           const Camera& camera,
+Expected<std::unique_ptr<FrameSource>> FrameSource::Create(const Scene& scene, const Camera& camera,
                                                            Trajectory ground_truth,
                                                            const FrameSourceOptions& options) {
   std::string why;
   if (!options.noise.Check(&why)) return Status::Error(why);
+  if (options.vertex_stride < 1) return Status::Error("vertex_stride must be at least 1");
   ProjectorOptions projector_options;
   projector_options.occlusion = options.occlusion;
   projector_options.num_threads = options.projector_threads;
-  Expected<std::unique_ptr<CpuProjector>> projector = CpuProjector::Create(scene, projector_options);
+  projector_options.occlusion_resolution_scale = options.occlusion_resolution_scale;
+  Expected<std::unique_ptr<CpuProjector>> projector =
+      CpuProjector::Create(scene, projector_options);
   if (!projector) return Status::Error(projector.error());
   std::unique_ptr<FrameSource> source(new FrameSource());
   source->camera_ = camera;
@@ -52,6 +54,10 @@ Status FrameSource::MakeFrame(size_t index, slam::Frame* frame) {
   const TimedPose& gt = ground_truth_[index];
   Status status = projector_->Project(gt.world_from_camera, camera_, &projected_);
   if (!status) return status;
+  if (options_.vertex_stride > 1) {
+    const uint32_t stride = static_cast<uint32_t>(options_.vertex_stride);
+    std::erase_if(projected_, [stride](const ProjectedVertex& v) { return v.id % stride != 0; });
+  }
   if (options_.noise.Enabled()) {
     ApplyFeatureNoise(options_.noise, camera_, num_vertices_, index, &projected_);
   }

@@ -37,6 +37,11 @@ Camera BenchCamera();
 struct FrameSourceOptions {
   FeatureNoiseOptions noise;  // applied per frame (frame index = seq)
   bool occlusion = true;
+  // Depth-buffer resolution for occlusion as a fraction of the image (projector.h).
+  double occlusion_resolution_scale = 0.5;
+  // Keep only vertices whose id is a multiple of this (a consistent subsample of the scene, so
+  // that successive frames see the same points; 1: every vertex).
+  int vertex_stride = 1;
   int projector_threads = 1;
 };
 

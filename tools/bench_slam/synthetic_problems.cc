@@ -22,8 +22,9 @@ Pose3 Perturb(const Pose3& pose, double angle_rad, double shift, std::mt19937* r
   std::normal_distribution<double> normal;
   const Eigen::Vector3d axis(normal(*rng), normal(*rng), normal(*rng));
   const Eigen::Vector3d dir(normal(*rng), normal(*rng), normal(*rng));
-  return Pose3(Eigen::Quaterniond(Eigen::AngleAxisd(angle_rad, axis.normalized())) * pose.rotation(),
-               pose.translation() + shift * dir.normalized());
+  return Pose3(
+      Eigen::Quaterniond(Eigen::AngleAxisd(angle_rad, axis.normalized())) * pose.rotation(),
+      pose.translation() + shift * dir.normalized());
 }
 
 }  // namespace
@@ -43,7 +44,8 @@ PoseOnlyProblem MakePoseOnlyProblem(int num_features, double noise_px, double wr
     const Eigen::Vector2d uv = out.camera.Project(pc);
     if (!out.camera.InImage(uv.x(), uv.y())) continue;
     out.points.push_back(p);
-    out.uv.push_back(uv + (noise_px > 0 ? Eigen::Vector2d(noise(rng), noise(rng)) : Eigen::Vector2d::Zero()));
+    out.uv.push_back(
+        uv + (noise_px > 0 ? Eigen::Vector2d(noise(rng), noise(rng)) : Eigen::Vector2d::Zero()));
   }
   std::uniform_int_distribution<int> pick(0, num_features - 1);
   const int wrong = static_cast<int>(std::lround(wrong_fraction * num_features));
@@ -64,11 +66,13 @@ LocalBaWindow MakeLocalBaWindow(int num_keyframes, int features_per_keyframe, do
   // (a walking head makes a keyframe every ~10 cm).
   const int num_points = features_per_keyframe * 3;
   std::vector<Eigen::Vector3d> truth(num_points);
-  for (Eigen::Vector3d& p : truth) p = 2.0 * Eigen::Vector3d(uniform(rng), uniform(rng), uniform(rng));
+  for (Eigen::Vector3d& p : truth)
+    p = 2.0 * Eigen::Vector3d(uniform(rng), uniform(rng), uniform(rng));
   for (int k = 0; k < num_keyframes; ++k) {
     const double angle = 0.1 / 3.0 * k;
     const Pose3 camera_from_world =
-        LookAt({3.0 * std::cos(angle), 3.0 * std::sin(angle), 0.3}, Eigen::Vector3d::Zero()).Inverse();
+        LookAt({3.0 * std::cos(angle), 3.0 * std::sin(angle), 0.3}, Eigen::Vector3d::Zero())
+            .Inverse();
     out.problem.keyframes.push_back({static_cast<KeyframeId>(k), camera_from_world, k < 2});
   }
   for (int p = 0; p < num_points; ++p) {
@@ -84,13 +88,16 @@ LocalBaWindow MakeLocalBaWindow(int num_keyframes, int features_per_keyframe, do
       const Eigen::Vector2d uv = out.camera.Project(pc);
       if (pc.z() < out.camera.near || !out.camera.InImage(uv.x(), uv.y()) || !take(rng)) continue;
       out.problem.observations.push_back(
-          {k, p, uv + (noise_px > 0 ? Eigen::Vector2d(noise(rng), noise(rng)) : Eigen::Vector2d::Zero())});
+          {k, p,
+           uv +
+               (noise_px > 0 ? Eigen::Vector2d(noise(rng), noise(rng)) : Eigen::Vector2d::Zero())});
     }
   }
   for (int k = 2; k < num_keyframes; ++k) {
     {
       slam::BaKeyframe& keyframe = out.problem.keyframes[k];
-      keyframe.camera_from_world = Perturb(keyframe.camera_from_world, 0.1 * M_PI / 180.0, 0.003, &rng);
+      keyframe.camera_from_world =
+          Perturb(keyframe.camera_from_world, 0.1 * M_PI / 180.0, 0.003, &rng);
     }
   }
   for (slam::BaPoint& point : out.problem.points) {
