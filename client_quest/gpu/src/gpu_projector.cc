@@ -179,6 +179,7 @@ GpuProjector::~GpuProjector() {
 
 Status GpuProjector::Project(const Pose3& world_from_camera, const Camera& camera,
                              std::vector<ProjectedVertex>* out) {
+  if (out == nullptr) return Status::Error("GpuProjector::Project: null output");
   if (in_flight_ != 0) {
     return Status::Error("GpuProjector::Project: asynchronous frames in flight; Collect() them");
   }
@@ -249,6 +250,7 @@ Status GpuProjector::Dispatch(const Pose3& world_from_camera, const Camera& came
 }
 
 Status GpuProjector::Collect(std::vector<ProjectedVertex>* out, int64_t* tag) {
+  if (out == nullptr) return Status::Error("GpuProjector::Collect: null output");
   if (in_flight_ == 0) return Status::Error("GpuProjector::Collect: no frame in flight");
   if (Status s = context_->MakeCurrent(); !s) return s;
   Slot& slot = slots_[(next_slot_ - in_flight_ + kMaxFramesInFlight) % kMaxFramesInFlight];

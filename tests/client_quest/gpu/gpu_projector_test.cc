@@ -212,6 +212,7 @@ TEST_F(GpuProjectorTest, RejectsBadInput) {
   const Pose3 nan_pose(Eigen::Quaterniond::Identity(),
                        Eigen::Vector3d(std::numeric_limits<double>::quiet_NaN(), 0, 0));
   EXPECT_FALSE((*gpu)->Project(nan_pose, Camera{}, &out));
+  EXPECT_FALSE((*gpu)->Project(Pose3::Identity(), Camera{}, nullptr));
   // Still usable after refused frames.
   ASSERT_TRUE((*gpu)->Project(Pose3::Identity(), Camera{}, &out));
   EXPECT_EQ(out.size(), 3u);
