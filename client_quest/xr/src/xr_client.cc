@@ -214,6 +214,9 @@ Expected<XrClientResult> RunXrClient(const XrClientOptions& options, XrPlatform*
     for (const ControlEvent& e : options.events) {
       if (e.frame == (*xr)->frames_begun()) controls.push_back(e.kind);
     }
+    if (options.platform_events && !options.platform_events()) {
+      controls.push_back(ControlEvent::Kind::kQuit);
+    }
     if (options.stdin_keys) {
       for (ControlEvent::Kind k : ReadKeys()) controls.push_back(k);
     }

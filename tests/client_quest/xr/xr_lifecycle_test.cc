@@ -87,13 +87,17 @@ TEST(XrClientLifecycle, OverLcmToASeparateServer) {
   const fs::path dir = TestDir();
   const Trajectory played = WritePlayedTrajectory(dir / "head.tum", 4.5);
   const std::string url = "udpm://239.255.76.67:7667?ttl=0";
-  // Loopback multicast inside a private network namespace: nothing leaves this test.
-  const std::string script = "ip link set lo up && ip route add 224.0.0.0/4 dev lo && " + server +
-                             " --lcm-url " + Quote(url) + " > " +
-                             Quote((dir / "server.txt").string()) + " 2>&1 & pid=$!; " +
-                             Client(dir, "", "--lcm-url " + Quote(url) + " --frames 300" + kLight) +
-                             "; rc=$?; kill -INT $pid; wait $pid; exit $rc";
-  const int rc = RunBounded("unshare -rn sh -c " + Quote(script), 180, dir / "log.txt");
+  // Loopback multicast inside a private network namespace: nothing leaves this test. The
+  // script is a file so that its quoting stays simple.
+  const fs::path script = dir / "lcm_run.sh";
+  std::ofstream(script) << "ip link set lo up && ip route add 224.0.0.0/4 dev lo || exit 3\n"
+                        << server << " --lcm-url " << Quote(url) << " > "
+                        << Quote((dir / "server.txt").string()) << " 2>&1 &\n"
+                        << "pid=$!\n"
+                        << "M2S_XR_SIM_REALTIME=1 "
+                        << Client(dir, "", "--lcm-url " + Quote(url) + " --frames 300" + kLight)
+                        << "\nrc=$?\nkill -INT $pid\nwait $pid\nexit $rc\n";
+  const int rc = RunBounded("unshare -rn sh " + script.string(), 180, dir / "log.txt");
   ASSERT_EQ(rc, 0) << ReadText(dir / "log.txt") << ReadText(dir / "server.txt");
   ExpectCleanRuntimeReport(ReadJson(dir / "runtime_report.json"));
   auto estimate = ReadTum((dir / "out" / "trajectory.tum").string());

@@ -20,6 +20,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -61,6 +62,9 @@ struct XrClientOptions {
   int align_every_frames = 15;       // how often the overlay's Sim3 alignment is refreshed
   double final_pose_timeout_s = 5.0;
   std::string out_dir = "out";
+  // Called once per loop iteration on the render thread (the Android looper); returning false
+  // asks the runtime to end the session. Empty on desktop.
+  std::function<bool()> platform_events;
   bool Check(std::string* why) const;
 };
 
