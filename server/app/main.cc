@@ -12,7 +12,7 @@
 #include <iostream>
 
 #include <CLI/CLI.hpp>
-#include <opencv2/core/persistence.hpp>
+#include <opencv2/core.hpp>
 
 #include "m2s/server_app/lcm_server.h"
 

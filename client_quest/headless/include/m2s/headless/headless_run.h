@@ -1,0 +1,58 @@
+// The headless client's run: a scene and a trajectory resampled at `fps` become frames
+// (projector -> noise -> codec), sent over a transport (on-device or LCM) in real time (frames
+// the client cannot produce in time are skipped; the server's latest-wins queue skips the
+// frames SLAM cannot take) or, with `fast`, one frame at a time waiting for each pose
+// (deterministic). The outputs are written by WriteRunOutputs.
+//
+//   HeadlessOptions options;            // default scene, default trajectory, on-device
+//   options.fast = true;
+//   Expected<RunMetrics> metrics = RunHeadless(options);
+#pragma once
+
+#include <functional>
+#include <optional>
+#include <string>
+
+#include "m2s/common/feature_noise.h"
+#include "m2s/common/projector.h"
+#include "m2s/headless/run_outputs.h"
+#include "m2s/server_app/session_manager.h"
+
+namespace m2s::headless {
+
+struct HeadlessOptions {
+  std::string mesh_path;        // empty: MakeDefaultScene()
+  std::string trajectory_path;  // TUM; empty: DefaultTrajectory()
+  Camera camera = Camera::FromHorizontalFov(640, 480, 90.0);
+  double fps = 75.0;
+  bool fast = false;
+  bool on_device = true;
+  std::string lcm_url = wire::kDefaultLcmUrl;
+  std::string projector = "gpu";  // "gpu" (CPU fallback when EGL fails) or "cpu"
+  ProjectorOptions projector_options;
+  FeatureNoiseOptions noise;
+  std::string out_dir = "out";
+  bool progress = false;  // a progress line on stderr
+  bool render_map = true;
+  // Only the first max_frames frames (0: all), for short tests.
+  int max_frames = 0;
+  // How long to wait for a pose in --fast mode, and for the last pose at the end.
+  double pose_timeout_s = 10.0;
+  // Server options of the on-device session manager.
+  server_app::ServerOptions server;
+  // Session ids (0: random).
+  uint64_t session_seed = 0;
+  // Called after each frame is sent, with its index (tests inject events here).
+  std::function<void(int64_t)> on_frame_sent;
+};
+
+// One line the caller should print (e.g. the GPU -> CPU fallback); empty when none.
+struct HeadlessResult {
+  RunMetrics metrics;
+  std::string notice;
+  client::ClientCounters counters;
+};
+
+Expected<HeadlessResult> RunHeadless(const HeadlessOptions& options);
+
+}  // namespace m2s::headless

@@ -1,0 +1,73 @@
+// The outputs of a run (live headless client or replay), computed from the client's frame
+// records and map replica: trajectory.tum, keyframes.tum, groundtruth.tum, metrics.json,
+// trajectory.png (top view: ground truth vs the Sim3-aligned estimate) and map.png (the mesh
+// with the aligned map points and keyframes, rendered with GLES by MapRenderer; drawn with
+// OpenCV when no EGL display is available).
+//
+// Estimates are stamped with the frames' capture times, the ground-truth times, so the
+// evaluation associates them exactly. When the run spans several sessions (server restart),
+// the session with the most tracked frames is evaluated and written.
+//
+//   RunInfo info{.projector = "gpu", .fps = 75};
+//   Expected<RunMetrics> m = WriteRunOutputs("out", records, replica.Snapshot(), &scene, info);
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "m2s/client/client_session.h"
+#include "m2s/client/map_replica.h"
+#include "m2s/common/scene.h"
+#include "m2s/common/status.h"
+
+namespace m2s::headless {
+
+struct RunInfo {
+  std::string projector = "cpu";
+  std::string transport = "on-device";
+  double fps = 75.0;
+  bool fast = false;
+  int64_t frames_total = 0;           // frames of the resampled trajectory
+  int64_t frames_skipped_client = 0;  // not sent: the client fell behind real time
+  int64_t sessions = 1;
+  int64_t server_restarts = 0;
+  int64_t resync_requests = 0;
+  double wall_s = 0.0;
+  bool render_map = true;  // write map.png
+};
+
+struct RunMetrics {
+  int64_t frames_total = 0;
+  int64_t frames_processed = 0;  // a pose arrived
+  int64_t frames_skipped = 0;    // never processed (skipped by the client or the server queue)
+  int64_t frames_lost = 0;       // processed, state LOST
+  int64_t frames_tracked = 0;    // processed, state OK or RELOCALIZED
+  double ate_rmse = -1.0;        // metres, Sim3-aligned; -1 when fewer than 3 tracked frames
+  double ate_scale = 0.0;
+  double map_rmse = -1.0;  // metres, map points aligned by the trajectory's Sim3
+  double tracking_ms_p50 = 0.0, tracking_ms_p95 = 0.0;
+  double latency_ms_p50 = 0.0, latency_ms_p99 = 0.0;
+  double bytes_per_feature = 0.0;
+  double features_per_frame = 0.0;
+  int64_t keyframes = 0;
+  int64_t map_points = 0;
+  std::string projector;
+  double fps = 0.0;
+  std::string map_png;         // path, empty when not written
+  std::string trajectory_png;  // path
+};
+
+Expected<RunMetrics> WriteRunOutputs(const std::string& out_dir,
+                                     const std::vector<client::FrameRecord>& records,
+                                     const client::MapSnapshot& map, const Scene* scene,
+                                     const Camera& camera, const RunInfo& info);
+
+// One line: frames, ATE, map error, latency, tracking time, output folder.
+std::string SummaryLine(const RunMetrics& metrics, const std::string& out_dir);
+
+// The trajectory (world_from_camera at capture times) of the tracked frames of `session_id`.
+std::vector<client::FrameRecord> TrackedFrames(const std::vector<client::FrameRecord>& records,
+                                               int64_t session_id);
+
+}  // namespace m2s::headless

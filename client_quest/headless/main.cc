@@ -1,0 +1,111 @@
+// m2s_client: the headless Mesh2SLAM client.
+//
+//   m2s_client [--mesh FILE --trajectory GT.tum] [--camera CAMERA.json | --width W --height H
+//              --fov-deg F] [--fps F] [--fast] [--on-device | --lcm-url URL]
+//              [--projector gpu|cpu] [--occlusion] [--noise-px S --outlier-ids P --dropout P
+//              --seed N] [--out DIR]
+//
+// Without --mesh / --trajectory it uses the embedded default scene and its trajectory.
+// Prints one summary line (and a progress line while running on a terminal).
+#include <unistd.h>
+
+#include <fstream>
+#include <iostream>
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include "m2s/common/logging.h"
+#include "m2s/headless/headless_run.h"
+
+namespace {
+
+m2s::Expected<m2s::Camera> ReadCameraJson(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) return m2s::Expected<m2s::Camera>::Error("cannot open camera file " + path);
+  m2s::Camera camera;
+  try {
+    const nlohmann::json j = nlohmann::json::parse(in);
+    camera.width = j.at("width").get<int>();
+    camera.height = j.at("height").get<int>();
+    camera.fx = j.at("fx").get<double>();
+    camera.fy = j.at("fy").get<double>();
+    camera.cx = j.at("cx").get<double>();
+    camera.cy = j.at("cy").get<double>();
+    camera.near = j.value("near", camera.near);
+    camera.far = j.value("far", camera.far);
+  } catch (const nlohmann::json::exception& e) {
+    return m2s::Expected<m2s::Camera>::Error("bad camera file " + path + ": " + e.what());
+  }
+  std::string why;
+  if (!camera.Check(&why)) {
+    return m2s::Expected<m2s::Camera>::Error("bad camera file " + path + ": " + why);
+  }
+  return camera;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  m2s::headless::HeadlessOptions options;
+  std::string camera_json;
+  int width = 640, height = 480;
+  double fov_deg = 90.0;
+  std::string lcm_url;
+  bool on_device = false;
+  CLI::App app{"Mesh2SLAM headless client: streams vertex features of a scene to a SLAM server"};
+  app.add_option("--mesh", options.mesh_path, "Scene mesh (any format assimp reads)");
+  app.add_option("--trajectory", options.trajectory_path, "Ground-truth trajectory (TUM)");
+  auto* camera_opt = app.add_option("--camera", camera_json, "CAMERA.json");
+  auto* width_opt = app.add_option("--width", width, "Image width (px)")->capture_default_str();
+  auto* height_opt = app.add_option("--height", height, "Image height (px)")->capture_default_str();
+  auto* fov_opt =
+      app.add_option("--fov-deg", fov_deg, "Horizontal field of view")->capture_default_str();
+  camera_opt->excludes(width_opt)->excludes(height_opt)->excludes(fov_opt);
+  app.add_option("--fps", options.fps, "Frame rate")->capture_default_str();
+  app.add_flag("--fast", options.fast, "Every frame, as fast as possible, deterministic");
+  auto* device_opt = app.add_flag("--on-device", on_device, "Run the server in-process (default)");
+  auto* url_opt = app.add_option("--lcm-url", lcm_url, "LCM URL of a running m2s_server");
+  device_opt->excludes(url_opt);
+  app.add_option("--projector", options.projector, "gpu (default, CPU fallback) or cpu")
+      ->capture_default_str();
+  app.add_flag("--occlusion", options.projector_options.occlusion, "Remove occluded vertices");
+  app.add_option("--noise-px", options.noise.pixel_noise_sigma, "Gaussian pixel noise (px)");
+  app.add_option("--outlier-ids", options.noise.wrong_id_fraction, "Fraction of wrong ids");
+  app.add_option("--dropout", options.noise.dropout_probability, "Feature dropout probability");
+  app.add_option("--seed", options.noise.seed, "Noise seed");
+  app.add_option("--out", options.out_dir, "Output folder")->capture_default_str();
+  app.add_flag(
+      "--no-map-png", [&options](int64_t) { options.render_map = false; }, "Do not render map.png");
+  CLI11_PARSE(app, argc, argv);
+
+  if (!camera_json.empty()) {
+    auto camera = ReadCameraJson(camera_json);
+    if (!camera) {
+      std::cerr << "m2s_client: " << camera.error() << "\n";
+      return 2;
+    }
+    options.camera = *camera;
+  } else {
+    if (!(fov_deg > 0 && fov_deg < 180)) {
+      std::cerr << "m2s_client: --fov-deg must be in (0, 180)\n";
+      return 2;
+    }
+    options.camera = m2s::Camera::FromHorizontalFov(width, height, fov_deg);
+  }
+  options.on_device = lcm_url.empty();
+  if (!lcm_url.empty()) options.lcm_url = lcm_url;
+  options.progress = isatty(STDERR_FILENO) != 0;
+  m2s::SetMinLogLevel(m2s::LogLevel::kWarning);
+
+  auto result = m2s::headless::RunHeadless(options);
+  if (!result) {
+    std::cerr << "m2s_client: " << result.error() << "\n";
+    return 1;
+  }
+  if (!result->notice.empty()) std::cerr << "m2s_client: " << result->notice << "\n";
+  std::cout << m2s::headless::SummaryLine(result->metrics, options.out_dir) << "\n";
+  if (!result->metrics.map_png.empty()) std::cout << "map: " << result->metrics.map_png << "\n";
+  std::cout << "trajectory: " << result->metrics.trajectory_png << "\n";
+  return 0;
+}

@@ -1,0 +1,153 @@
+#include "m2s/headless/headless_run.h"
+
+#include <chrono>
+#include <cstdio>
+#include <iostream>
+#include <thread>
+
+#include "m2s/client/client_session.h"
+#include "m2s/client/frame_source.h"
+#include "m2s/client/on_device_transport.h"
+#include "m2s/common/cpu_projector.h"
+#include "m2s/common/logging.h"
+#include "m2s/common/scene.h"
+#include "m2s/common/trajectory.h"
+#include "m2s/gpu/projector_factory.h"
+
+namespace m2s::headless {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+constexpr double kProgressPeriodS = 0.5;
+constexpr double kSyncMapTimeoutS = 5.0;
+
+Expected<std::unique_ptr<Projector>> CreateProjector(const HeadlessOptions& options,
+                                                     const Scene& scene, std::string* notice,
+                                                     std::string* name) {
+  auto kind = ParseProjectorKind(options.projector);
+  if (!kind) return kind.status();
+  if (*kind == ProjectorKind::kGpu) {
+    auto gpu = MakeProjector(ProjectorKind::kGpu, scene, options.projector_options, nullptr);
+    if (gpu) {
+      *name = "gpu";
+      return gpu;
+    }
+    *notice = "GPU projector unavailable (" + gpu.error() + "); using the CPU projector";
+  }
+  *name = "cpu";
+  return MakeProjector(ProjectorKind::kCpu, scene, options.projector_options, nullptr);
+}
+
+}  // namespace
+
+Expected<HeadlessResult> RunHeadless(const HeadlessOptions& options) {
+  std::string why;
+  if (!(options.fps > 0 && options.fps <= 10000))
+    return Status::Error("--fps must be in (0, 10000]");
+  if (!options.camera.Check(&why)) return Status::Error("camera: " + why);
+  if (!options.noise.Check(&why)) return Status::Error("noise: " + why);
+  if (!options.projector_options.Check(&why)) return Status::Error("projector: " + why);
+
+  Scene scene;
+  if (options.mesh_path.empty()) {
+    scene = MakeDefaultScene();
+  } else {
+    auto loaded = LoadScene(options.mesh_path);
+    if (!loaded) return loaded.status();
+    scene = std::move(*loaded);
+  }
+  Trajectory trajectory;
+  if (options.trajectory_path.empty()) {
+    trajectory = DefaultTrajectory();
+  } else {
+    auto read = ReadTum(options.trajectory_path);
+    if (!read) return read.status();
+    trajectory = std::move(*read);
+  }
+  auto resampled = trajectory.Resample(options.fps);
+  if (!resampled) return resampled.status();
+  const size_t num_frames = options.max_frames > 0
+                                ? std::min<size_t>(resampled->size(), options.max_frames)
+                                : resampled->size();
+
+  HeadlessResult result;
+  std::string projector_name;
+  auto projector = CreateProjector(options, scene, &result.notice, &projector_name);
+  if (!projector) return projector.status();
+  client::FrameSource source(projector->get(), options.camera, options.noise,
+                             static_cast<uint32_t>(scene.num_vertices()));
+
+  std::unique_ptr<client::Transport> transport;
+  if (options.on_device) {
+    server_app::ServerOptions server = options.server;
+    server.slam.deterministic = server.slam.deterministic || options.fast;
+    transport = std::make_unique<client::OnDeviceTransport>(server);
+  } else {
+    transport = std::make_unique<client::LcmTransport>(options.lcm_url);
+  }
+  client::ClientSessionOptions session_options;
+  session_options.camera = options.camera;
+  session_options.deterministic = options.fast;
+  session_options.session_seed = options.session_seed;
+  client::ClientSession session(transport.get(), session_options);
+  if (Status s = session.Start(); !s) return s;
+
+  RunInfo info;
+  info.projector = projector_name;
+  info.transport = options.on_device ? "on-device" : "lcm";
+  info.fps = options.fps;
+  info.fast = options.fast;
+  info.frames_total = static_cast<int64_t>(num_frames);
+  info.render_map = options.render_map;
+
+  const auto start = Clock::now();
+  auto next_progress = start;
+  const auto period = std::chrono::duration<double>(1.0 / options.fps);
+  int64_t last_seq = 0;
+  for (size_t k = 0; k < num_frames; ++k) {
+    const TimedPose& pose = (*resampled)[k];
+    if (!options.fast) {
+      const auto due = start + std::chrono::duration_cast<Clock::duration>(period * k);
+      const auto now = Clock::now();
+      if (now > due + std::chrono::duration_cast<Clock::duration>(period)) {
+        ++info.frames_skipped_client;  // more than a frame late: real time moves on
+        continue;
+      }
+      std::this_thread::sleep_until(due);
+    }
+    auto frame = source.Make(pose.world_from_camera, std::llround(pose.timestamp * 1e6), k);
+    if (!frame) return Status::Error("projection failed: " + frame.error());
+    auto seq = session.Send(std::move(*frame));
+    if (!seq) return seq.status();
+    last_seq = *seq;
+    if (options.on_frame_sent) options.on_frame_sent(static_cast<int64_t>(k));
+    if (options.fast) session.WaitForPose(last_seq, options.pose_timeout_s);
+    if (options.progress && Clock::now() >= next_progress) {
+      const client::ClientCounters c = session.Counters();
+      std::fprintf(stderr, "\rframe %zu/%zu  poses %lld  skipped %lld  map %zu points   ", k + 1,
+                   num_frames, static_cast<long long>(c.poses_received),
+                   static_cast<long long>(info.frames_skipped_client),
+                   session.replica().num_points());
+      next_progress = Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                         std::chrono::duration<double>(kProgressPeriodS));
+    }
+  }
+  if (options.progress) std::fprintf(stderr, "\r%*s\r", 70, "");
+  if (last_seq > 0) session.WaitForPose(last_seq, options.pose_timeout_s);
+  if (!session.SyncMap(kSyncMapTimeoutS)) M2S_LOG(kWarning) << "no full map before the end";
+  info.wall_s = std::chrono::duration<double>(Clock::now() - start).count();
+  const std::vector<client::FrameRecord> records = session.Records();
+  const client::MapSnapshot map = session.replica().Snapshot();
+  result.counters = session.Counters();
+  session.End();
+  info.sessions = result.counters.sessions_started;
+  info.server_restarts = result.counters.server_restarts;
+  info.resync_requests = result.counters.resync_requests;
+  auto metrics = WriteRunOutputs(options.out_dir, records, map, &scene, options.camera, info);
+  if (!metrics) return metrics.status();
+  result.metrics = std::move(*metrics);
+  return result;
+}
+
+}  // namespace m2s::headless
