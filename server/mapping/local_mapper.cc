@@ -96,13 +96,13 @@ void LocalMapper::Process(const KeyframeCandidate& c) {
   TriangulateNewPoints(c.id);
   const size_t num_keyframes = map_->Read([](const MapData& m) { return m.keyframes().size(); });
   if (corrected) {
-    GlobalBundleAdjust(/*max_iterations=*/15);
+    GlobalBundleAdjust(/*max_iterations=*/15, /*max_points=*/0);
     std::lock_guard<std::mutex> lock(stats_mutex_);
     ++stats_.loop_corrections;
   } else if (num_keyframes <= static_cast<size_t>(kGlobalBaKeyframes)) {
     // A young map is refined as a whole: the low-parallax initial structure must not be
     // frozen into the keyframes that later windows hold fixed.
-    GlobalBundleAdjust(/*max_iterations=*/10);
+    GlobalBundleAdjust(/*max_iterations=*/10, options_.local_ba_max_points);
   } else {
     LocalBundleAdjust(c.id);
   }
@@ -323,8 +323,9 @@ void LocalMapper::ApplyBundleAdjustment(const BaProblem& problem,
   });
 }
 
-void LocalMapper::GlobalBundleAdjust(int max_iterations) {
+void LocalMapper::GlobalBundleAdjust(int max_iterations, int max_points) {
   BaProblem problem;
+  std::vector<VertexId> rest;
   map_->Read([&](const MapData& m) {
     std::unordered_map<KeyframeId, int> kf_index;
     for (const auto& [id, kf] : m.keyframes()) {
@@ -334,7 +335,17 @@ void LocalMapper::GlobalBundleAdjust(int max_iterations) {
     std::vector<VertexId> ids;
     for (const auto& [id, p] : m.points()) ids.push_back(id);
     std::sort(ids.begin(), ids.end());
-    for (const VertexId vid : ids) {
+    const double step = max_points > 0 && static_cast<int>(ids.size()) > max_points
+                            ? static_cast<double>(ids.size()) / max_points
+                            : 1.0;
+    double next = 0.0;
+    for (size_t i = 0; i < ids.size(); ++i) {
+      const VertexId vid = ids[i];
+      if (static_cast<double>(i) < next) {
+        rest.push_back(vid);
+        continue;
+      }
+      next += step;
       const MapPoint* p = m.point(vid);
       const int pi = static_cast<int>(problem.points.size());
       problem.points.push_back({vid, p->position, false});
@@ -347,6 +358,7 @@ void LocalMapper::GlobalBundleAdjust(int max_iterations) {
   const BundleAdjustmentResult result =
       BundleAdjust(options_.camera, MakeBaOptions(options_, max_iterations), &problem);
   if (result.success) ApplyBundleAdjustment(problem, result);
+  RetriangulatePoints(rest);
   std::lock_guard<std::mutex> lock(stats_mutex_);
   ++stats_.global_bundle_adjustments;
 }

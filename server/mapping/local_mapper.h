@@ -43,8 +43,9 @@ class LocalMapper {
   void InsertInitialMap(const InitialMap& initial, KeyframeId first, KeyframeId second);
   // Processes one keyframe: insert, drift check, triangulate, local BA, cull.
   void Process(const KeyframeCandidate& candidate);
-  // Bundle adjustment of the whole map (first keyframe fixed).
-  void GlobalBundleAdjust(int max_iterations);
+  // Bundle adjustment of the whole map (first keyframe fixed); with max_points > 0 at most
+  // that many points (evenly spread over ids) enter it and the others are re-triangulated.
+  void GlobalBundleAdjust(int max_iterations, int max_points);
 
   MappingStats stats() const;
 

@@ -140,8 +140,8 @@ TrackResult SlamSystem::TrackLocked(const Frame& frame) {
       return result;
     }
   }
-  const bool accepts = options_.deterministic || !keyframes_.full();
-  TrackerOutput out = tracker_.Track(frame.seq, frame.timestamp, features, accepts);
+  const bool mapping_busy = !options_.deterministic && keyframes_.full();
+  TrackerOutput out = tracker_.Track(frame.seq, frame.timestamp, features, mapping_busy);
   result.state = out.state;
   result.world_from_camera = out.world_from_camera;
   result.num_inliers = out.num_inliers;

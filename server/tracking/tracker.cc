@@ -12,12 +12,15 @@ namespace m2s::slam {
 namespace {
 
 constexpr int kMaxPnpPoints = 500;
-constexpr double kChi2TwoDof = 5.991;  // RANSAC input, subsampled evenly beyond this
+constexpr double kChi2TwoDof = 5.991;
+// Below this fraction of the reference keyframe's points, a keyframe is made even when mapping
+// is busy.
+constexpr double kCriticalTrackedRatio = 0.5;  // RANSAC input, subsampled evenly beyond this
 constexpr int kPnpIterations = 200;
 constexpr double kPnpThresholdSigmas = 4.0;
 // Keyframes for unmapped features need some baseline (fraction of keyframe_baseline_ratio),
 // or the same features would ask for a keyframe on every frame.
-constexpr double kNewPointsBaselineFraction = 0.25;
+constexpr double kNewPointsBaselineFraction = 0.5;
 
 PoseOnlyOptions MakePoseOptions(const Options& options) {
   PoseOnlyOptions p;
@@ -199,7 +202,7 @@ bool Tracker::NeedKeyframe(const Association& a, int num_inliers, const Pose3& w
 }
 
 TrackerOutput Tracker::Track(int64_t seq, double timestamp, const SortedFeatures& features,
-                             bool mapping_accepts_keyframes) {
+                             bool mapping_busy) {
   TrackerOutput out;
   // Drift correction moved the world: carry the last pose into the corrected world.
   const WorldCorrection correction = map_->correction();
@@ -249,7 +252,11 @@ TrackerOutput Tracker::Track(int64_t seq, double timestamp, const SortedFeatures
 
   const bool loop_candidate =
       options_.drift_correction && dormant_inliers >= options_.loop_min_points;
-  if (options_.localization_only || !mapping_accepts_keyframes || relocalised ||
+  // A busy mapping stage gets a keyframe only when tracking is getting weak (the caller then
+  // waits for room in the queue: back-pressure instead of a lost track).
+  const int reference_points = a.reference_points >= 0 ? a.reference_points : reference_points_;
+  const bool critical = num_inliers < kCriticalTrackedRatio * reference_points;
+  if (options_.localization_only || (mapping_busy && !critical) || relocalised ||
       !NeedKeyframe(a, num_inliers, out.world_from_camera, timestamp, loop_candidate)) {
     return out;
   }

@@ -8,7 +8,7 @@
 //
 //   Tracker tracker(options, &map);
 //   tracker.Start(initial_map_keyframe, ...);
-//   TrackerOutput out = tracker.Track(seq, timestamp, features, /*mapping_accepts=*/true);
+//   TrackerOutput out = tracker.Track(seq, timestamp, features, /*mapping_busy=*/false);
 #pragma once
 
 #include <optional>
@@ -55,7 +55,7 @@ class Tracker {
   void SetLocalizationOnly(bool on) { options_.localization_only = on; }
 
   TrackerOutput Track(int64_t seq, double timestamp, const SortedFeatures& features,
-                      bool mapping_accepts_keyframes);
+                      bool mapping_busy);
 
   bool started() const { return started_; }
   bool lost() const { return lost_; }

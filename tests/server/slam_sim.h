@@ -36,6 +36,48 @@ struct SimSequence {
   Scene scene;
 };
 
+// A light scene for fast tests: points on the walls, floor and ceiling of the default room
+// (6 x 5 x 3 m, z up, floor at 0) and in a few boxes standing in it. No triangles: project
+// without occlusion.
+inline Scene MakePointRoom(int num_points = 6000, uint64_t seed = 3) {
+  Scene scene;
+  scene.name = "point_room";
+  uint64_t state = seed * 0x9E3779B97F4A7C15ull + 1;
+  auto uniform = [&state](double lo, double hi) {
+    state = state * 6364136223846793005ull + 1442695040888963407ull;
+    return lo + (hi - lo) * static_cast<double>(state >> 11) / static_cast<double>(1ull << 53);
+  };
+  for (int i = 0; i < num_points; ++i) {
+    const int face = i % 8;
+    Eigen::Vector3d p;
+    switch (face) {
+      case 0:
+        p = {-3.0, uniform(-2.5, 2.5), uniform(0, 3)};
+        break;
+      case 1:
+        p = {3.0, uniform(-2.5, 2.5), uniform(0, 3)};
+        break;
+      case 2:
+        p = {uniform(-3, 3), -2.5, uniform(0, 3)};
+        break;
+      case 3:
+        p = {uniform(-3, 3), 2.5, uniform(0, 3)};
+        break;
+      case 4:
+        p = {uniform(-3, 3), uniform(-2.5, 2.5), 0.0};
+        break;
+      case 5:
+        p = {uniform(-3, 3), uniform(-2.5, 2.5), 3.0};
+        break;
+      default:
+        p = {uniform(-2.8, 2.8), uniform(-2.3, 2.3), uniform(0.0, 2.5)};
+        break;
+    }
+    scene.positions.push_back(p.cast<float>());
+  }
+  return scene;
+}
+
 inline const Scene& DefaultScene() {
   static const Scene scene = MakeDefaultScene();
   return scene;
@@ -74,7 +116,8 @@ inline std::vector<Frame> ProjectFrames(const Scene& scene, const Trajectory& tr
   return frames;
 }
 
-inline SimSequence MakeSequence(const SimOptions& options) {
+// `scene` null: the default scene.
+inline SimSequence MakeSequence(const SimOptions& options, const Scene* scene = nullptr) {
   SimSequence s;
   s.camera = Camera();
   HeadMotionOptions motion = DefaultHeadMotionOptions();
@@ -84,7 +127,7 @@ inline SimSequence MakeSequence(const SimOptions& options) {
   auto trajectory = GenerateHeadMotion(motion);
   EXPECT_TRUE(trajectory.ok()) << trajectory.error();
   s.ground_truth = *trajectory;
-  s.frames = ProjectFrames(DefaultScene(), s.ground_truth, s.camera, options);
+  s.frames = ProjectFrames(scene ? *scene : DefaultScene(), s.ground_truth, s.camera, options);
   return s;
 }
 

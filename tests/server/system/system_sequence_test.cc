@@ -1,10 +1,9 @@
-// End-to-end: the whole pipeline on generated head motion through the default scene.
+// End-to-end: the whole pipeline on generated head motion through the default scene (CPU
+// projector with occlusion, every visible vertex), deterministic mode. The ATE bound is far
+// above the benchmark's target so the test is stable, but catches a broken pipeline.
 #include <algorithm>
-#include <chrono>
 #include <cstdio>
-#include <cstdlib>
-
-#include "m2s/common/logging.h"
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -18,42 +17,40 @@ using testing::DefaultOptions;
 using testing::MakeSequence;
 using testing::SimOptions;
 
-TEST(SystemSequence, TracksNoiseFreeSequenceWithSmallAte) {
-  if (std::getenv("M2S_DEBUG")) SetMinLogLevel(LogLevel::kDebug);
+TEST(SystemSequence, TracksANoiseFreeSequenceOfTheDefaultScene) {
   SimOptions sim;
-  sim.duration_s = 10.0;
+  sim.duration_s = 8.0;
   sim.budget = 0;
-  const auto t0 = std::chrono::steady_clock::now();
   const auto seq = MakeSequence(sim);
-  std::printf("generation %.1f s, %zu frames, %zu features in frame 100\n",
-              std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(),
-              seq.frames.size(), seq.frames[100].features.size());
-  double total_ms = 0, init_ms = 0;
-  std::vector<double> track_ms;
   auto system = System::Create(DefaultOptions(seq.camera));
   ASSERT_TRUE(system.ok()) << system.error();
-  int lost = 0, initialised_at = -1;
+  int lost = 0, initialised_at = -1, keyframes_created = 0;
   for (const Frame& f : seq.frames) {
     const TrackResult r = (*system)->Track(f);
-    if (r.state == TrackingState::kLost) ++lost;
-    total_ms += r.tracking_ms;
-    if (r.state == TrackingState::kNotInitialized) init_ms += r.tracking_ms;
-    if (r.state == TrackingState::kOk && !r.keyframe_created) track_ms.push_back(r.tracking_ms);
+    lost += r.state == TrackingState::kLost ? 1 : 0;
+    keyframes_created += r.keyframe_created ? 1 : 0;
     if (initialised_at < 0 && r.state == TrackingState::kOk)
       initialised_at = static_cast<int>(f.seq);
   }
-  std::sort(track_ms.begin(), track_ms.end());
-  std::printf("total %.0f ms, init %.0f ms, median tracking %.3f ms\n", total_ms, init_ms,
-              track_ms.empty() ? 0.0 : track_ms[track_ms.size() / 2]);
   const auto ate = ComputeAte((*system)->Trajectory());
   const SystemStats stats = (*system)->Stats();
   std::printf(
-      "initialised at frame %d, lost %d, ATE %.9f m over %zu poses, %d keyframes, %d points\n",
-      initialised_at, lost, ate.rmse, ate.num_poses, stats.keyframes, stats.map_points);
+      "initialised at frame %d, lost %d, ATE %.3g m over %zu poses, %d keyframes (%d made), %d "
+      "points\n",
+      initialised_at, lost, ate.rmse, ate.num_poses, stats.keyframes, keyframes_created,
+      stats.map_points);
   EXPECT_GE(initialised_at, 0);
+  EXPECT_LT(initialised_at, 60);  // within two seconds
   EXPECT_EQ(lost, 0);
   EXPECT_LT(ate.rmse, 0.02);
-  EXPECT_GT(ate.num_poses, seq.frames.size() * 9 / 10);
+  EXPECT_EQ(ate.num_poses, seq.frames.size() - static_cast<size_t>(initialised_at) +
+                               (initialised_at > 0 ? 1 : 0));  // every frame from the reference
+  EXPECT_EQ(stats.frames_lost, 0);
+
+  // The map delta stream: a full first delta... then nothing until the map changes.
+  const MapDelta first = (*system)->TakeMapDelta();
+  EXPECT_EQ(static_cast<int>(first.point_ids.size()), stats.map_points);
+  EXPECT_TRUE((*system)->TakeMapDelta().empty());
 }
 
 }  // namespace

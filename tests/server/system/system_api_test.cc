@@ -1,0 +1,252 @@
+// The System API on a light synthetic room: bad frames, loss and relocalisation, reset,
+// save / load with localisation-only tracking, the asynchronous mode and shutdown.
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <limits>
+#include <thread>
+
+#include <gtest/gtest.h>
+
+#include "slam_sim.h"
+
+namespace m2s::slam {
+namespace {
+
+using testing::ComputeAte;
+using testing::DefaultOptions;
+using testing::MakePointRoom;
+using testing::MakeSequence;
+using testing::SimOptions;
+using testing::SimSequence;
+
+const SimSequence& Sequence() {
+  static const SimSequence seq = [] {
+    static const Scene room = MakePointRoom();
+    SimOptions sim;
+    sim.duration_s = 12.0;
+    sim.budget = 0;
+    sim.occlusion = false;
+    return MakeSequence(sim, &room);
+  }();
+  return seq;
+}
+
+std::unique_ptr<System> MakeSystem(bool deterministic = true) {
+  Options options = DefaultOptions(Sequence().camera);
+  options.deterministic = deterministic;
+  auto system = System::Create(options);
+  EXPECT_TRUE(system.ok()) << system.error();
+  return std::move(*system);
+}
+
+TEST(SystemApi, CreateRejectsBadOptions) {
+  Options options;
+  options.camera.fx = -1.0;
+  EXPECT_FALSE(System::Create(options).ok());
+  options = Options();
+  options.keyframe_tracked_ratio = 2.0;
+  const auto s = System::Create(options);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.error().find("keyframe_tracked_ratio"), std::string::npos);
+}
+
+TEST(SystemApi, BadFramesAreCountedAndRejectedWithoutHarm) {
+  auto system = MakeSystem();
+  const auto& frames = Sequence().frames;
+  int64_t seq = 0;
+  auto with_seq = [&](Frame f) {
+    f.seq = seq;
+    return f;
+  };
+  auto expect_rejected = [&](Frame f, const std::string& reason) {
+    const TrackResult r = system->Track(f);
+    EXPECT_EQ(r.state, TrackingState::kRejected) << reason;
+    EXPECT_EQ(r.reject_reason, reason);
+  };
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  for (size_t i = 0; i < 200; ++i) {
+    Frame f = frames[i];
+    seq = f.seq;
+    if (i == 20) {
+      Frame bad = f;
+      bad.features[3].uv.x() = nan;
+      expect_rejected(bad, "non_finite_uv");
+    } else if (i == 40) {
+      Frame bad = f;
+      bad.features.push_back(bad.features[0]);
+      expect_rejected(bad, "duplicate_id");
+    } else if (i == 60) {
+      expect_rejected(with_seq(Frame{}), "empty");
+    } else if (i == 80) {
+      Frame bad = f;
+      bad.features.resize(1000000, bad.features[0]);
+      for (size_t k = 0; k < bad.features.size(); ++k)
+        bad.features[k].id = static_cast<VertexId>(k);
+      expect_rejected(bad, "too_many_features");
+    } else if (i == 100) {
+      Frame bad = f;
+      bad.timestamp = frames[i - 50].timestamp;  // going back
+      expect_rejected(bad, "timestamp_going_back");
+    } else if (i == 120) {
+      Frame bad = frames[i - 1];  // seq not increasing
+      expect_rejected(bad, "seq_not_increasing");
+    }
+    const TrackResult r = system->Track(f);
+    EXPECT_NE(r.state, TrackingState::kRejected) << "frame " << i << ": " << r.reject_reason;
+    EXPECT_NE(r.state, TrackingState::kLost) << "frame " << i;
+  }
+  const SystemStats stats = system->Stats();
+  EXPECT_EQ(stats.frames_rejected, 6);
+  for (const char* reason : {"non_finite_uv", "duplicate_id", "empty", "too_many_features",
+                             "timestamp_going_back", "seq_not_increasing"}) {
+    EXPECT_EQ(stats.rejected_by_reason.count(reason), 1u) << reason;
+  }
+  EXPECT_EQ(stats.frames_lost, 0);
+  const auto ate = ComputeAte(system->Trajectory());
+  EXPECT_LT(ate.rmse, 0.01);
+}
+
+TEST(SystemApi, LosesTrackWhenFeaturesAreCutAndRelocalises) {
+  auto system = MakeSystem();
+  const auto& frames = Sequence().frames;
+  int lost = 0, relocalised = 0, ok_after = 0;
+  const size_t cut_begin = 150, cut_end = 180;  // one second at 30 fps
+  for (size_t i = 0; i < 260; ++i) {
+    Frame f = frames[i];
+    if (i >= cut_begin && i < cut_end) f.features.resize(std::min<size_t>(f.features.size(), 10));
+    const TrackResult r = system->Track(f);
+    if (i >= cut_begin && i < cut_end) {
+      lost += r.state == TrackingState::kLost ? 1 : 0;
+    } else if (i >= cut_end) {
+      relocalised += r.state == TrackingState::kRelocalized ? 1 : 0;
+      ok_after += r.state == TrackingState::kOk ? 1 : 0;
+    }
+  }
+  EXPECT_EQ(lost, static_cast<int>(cut_end - cut_begin));
+  EXPECT_EQ(relocalised, 1);
+  EXPECT_EQ(ok_after, static_cast<int>(260 - cut_end - 1));
+  const SystemStats stats = system->Stats();
+  EXPECT_EQ(stats.relocalisations, 1);
+  EXPECT_EQ(stats.frames_lost, static_cast<int64_t>(cut_end - cut_begin));
+  EXPECT_LT(ComputeAte(system->Trajectory()).rmse, 0.01);
+}
+
+TEST(SystemApi, ResetForgetsTheMapAndInitialisesAgain) {
+  auto system = MakeSystem();
+  const auto& frames = Sequence().frames;
+  for (size_t i = 0; i < 120; ++i) system->Track(frames[i]);
+  ASSERT_GT(system->Stats().keyframes, 1);
+  system->TakeMapDelta();
+  system->Reset();
+  EXPECT_EQ(system->Stats().keyframes, 0);
+  EXPECT_EQ(system->Stats().map_points, 0);
+  EXPECT_TRUE(system->Trajectory().empty());
+  const MapDelta delta = system->TakeMapDelta();
+  EXPECT_TRUE(delta.full);
+  EXPECT_TRUE(delta.keyframes.empty());
+  bool initialised = false;
+  for (size_t i = 120; i < 240 && !initialised; ++i) {
+    initialised = system->Track(frames[i]).state == TrackingState::kOk;
+  }
+  EXPECT_TRUE(initialised);
+}
+
+TEST(SystemApi, SavedMapIsLoadedForLocalisationOnly) {
+  const auto& frames = Sequence().frames;
+  const std::string path = ::testing::TempDir() + "/m2s_system_test.m2smap";
+  Sim3 truth_from_map;
+  {
+    auto system = MakeSystem();
+    for (size_t i = 0; i < frames.size(); ++i) system->Track(frames[i]);
+    const auto ate = ComputeAte(system->Trajectory());
+    ASSERT_LT(ate.rmse, 0.01);
+    truth_from_map = ate.truth_from_estimate;
+    ASSERT_TRUE(system->SaveMap(path).ok());
+  }
+  auto system = MakeSystem();
+  const Status bad = system->LoadMap(path + ".missing");
+  EXPECT_FALSE(bad.ok());
+  ASSERT_TRUE(system->LoadMap(path).ok());
+  const SystemStats loaded = system->Stats();
+  EXPECT_GT(loaded.keyframes, 2);
+  system->TakeMapDelta();
+  int relocalised = 0, ok = 0;
+  double max_error = 0.0;
+  for (size_t i = 100; i < frames.size(); i += 3) {
+    const TrackResult r = system->Track(frames[i]);
+    EXPECT_FALSE(r.keyframe_created);
+    relocalised += r.state == TrackingState::kRelocalized ? 1 : 0;
+    ok += r.state == TrackingState::kOk ? 1 : 0;
+    if (r.state == TrackingState::kOk || r.state == TrackingState::kRelocalized) {
+      const Eigen::Vector3d p = truth_from_map * r.world_from_camera.translation();
+      max_error =
+          std::max(max_error, (p - frames[i].ground_truth_world_from_camera->translation()).norm());
+    }
+  }
+  EXPECT_EQ(relocalised, 1);
+  EXPECT_GT(ok, 50);
+  EXPECT_LT(max_error, 0.02);  // in the saved map's frame: the same world as the first run
+  EXPECT_EQ(system->Stats().keyframes, loaded.keyframes);  // the map never changes
+  EXPECT_TRUE(system->TakeMapDelta().empty());
+  std::remove(path.c_str());
+}
+
+TEST(SystemApi, AsynchronousModeInRealTimeWithMappingThread) {
+  auto system = MakeSystem(/*deterministic=*/false);
+  const auto& frames = Sequence().frames;
+  // Frames arrive at the camera rate (the producer is paced like a camera, results are read
+  // by this thread in between).
+  const size_t n = std::min<size_t>(frames.size(), 240);
+  const auto start = std::chrono::steady_clock::now();
+  const double t0 = frames[0].timestamp;
+  std::vector<TrackResult> results;
+  for (size_t i = 0; i < n; ++i) {
+    std::this_thread::sleep_until(start + std::chrono::duration<double>(frames[i].timestamp - t0));
+    system->Submit(frames[i]);
+    TrackResult r;
+    while (system->WaitForResult(&r, 0.0)) results.push_back(r);
+  }
+  TrackResult r;
+  while (results.size() + system->Stats().frames_dropped_queue < n &&
+         system->WaitForResult(&r, 5.0)) {
+    results.push_back(r);
+  }
+  const SystemStats stats = system->Stats();
+  EXPECT_EQ(results.size() + stats.frames_dropped_queue, n);
+  int lost = 0;
+  for (size_t i = 0; i < results.size(); ++i) {
+    lost += results[i].state == TrackingState::kLost ? 1 : 0;
+    if (i > 0) EXPECT_GT(results[i].seq, results[i - 1].seq);  // in order
+  }
+  EXPECT_EQ(lost, 0);
+  EXPECT_LT(ComputeAte(system->Trajectory()).rmse, 0.02);
+  const MapDelta delta = system->TakeMapDelta();
+  EXPECT_GT(delta.point_ids.size(), 100u);
+  system->Shutdown();
+  EXPECT_FALSE(system->WaitForResult(&r, 0.01));
+}
+
+TEST(SystemApi, ShutdownWithFramesStillQueuedIsCleanAndIdempotent) {
+  Options options = DefaultOptions(Sequence().camera);
+  options.deterministic = false;
+  options.input_queue_capacity = 4;
+  auto created = System::Create(options);
+  ASSERT_TRUE(created.ok());
+  std::unique_ptr<System> system = std::move(created.value());
+  const auto& frames = Sequence().frames;
+  for (const Frame& f : frames) system->Submit(f);  // far faster than tracking: drops
+  system->Shutdown();
+  system->Shutdown();
+  const SystemStats stats = system->Stats();
+  EXPECT_EQ(stats.frames_submitted, static_cast<int64_t>(frames.size()));
+  EXPECT_GT(stats.frames_dropped_queue, 0);
+  EXPECT_LE(stats.frames_tracked + stats.frames_dropped_queue, stats.frames_submitted + 2);
+  system->Submit(frames[0]);  // ignored after shutdown
+  EXPECT_EQ(system->Stats().frames_submitted, static_cast<int64_t>(frames.size()));
+  EXPECT_EQ(system->Track(frames[1]).state, TrackingState::kRejected);
+}
+
+}  // namespace
+}  // namespace m2s::slam
