@@ -87,7 +87,8 @@ struct SlamLink {
   std::unique_ptr<client::ClientSession> session;
 };
 
-Expected<SlamLink> OpenLink(const XrClientOptions& options, uint64_t seed) {
+// `hello_timeout_s` 0 on the render thread: frames open the session if HELLO_ACK is late.
+Expected<SlamLink> OpenLink(const XrClientOptions& options, uint64_t seed, double hello_timeout_s) {
   SlamLink link;
   if (options.on_device) {
     link.transport = std::make_unique<client::OnDeviceTransport>(options.server);
@@ -98,6 +99,7 @@ Expected<SlamLink> OpenLink(const XrClientOptions& options, uint64_t seed) {
   session_options.camera = options.camera;
   session_options.client_name = "m2s_xr_client";
   session_options.session_seed = seed;
+  session_options.hello_timeout_s = hello_timeout_s;
   link.session = std::make_unique<client::ClientSession>(link.transport.get(), session_options);
   if (Status s = link.session->Start(); !s) return s;
   return link;
@@ -191,7 +193,8 @@ Expected<XrClientResult> RunXrClient(const XrClientOptions& options, XrPlatform*
   if (Status s = (*renderer)->SetMesh(scene.positions, scene.triangles); !s) return s;
   (*renderer)->SetFrustumCamera(options.camera);
 
-  auto link = OpenLink(options, options.server.server_instance);
+  constexpr double kStartHelloTimeoutS = 2.0;  // before the frame loop: waiting is fine
+  auto link = OpenLink(options, 0, kStartHelloTimeoutS);
   if (!link) return link.status();
   std::vector<client::FrameRecord> finished_records;  // of sessions ended by a reset
 
@@ -232,12 +235,14 @@ Expected<XrClientResult> RunXrClient(const XrClientOptions& options, XrPlatform*
         // A new SLAM session; the old one's frames stay in the records.
         for (const auto& r : link->session->Records()) finished_records.push_back(r);
         link->session->End();
-        auto fresh = OpenLink(options, 0);
+        const auto reset_start = Clock::now();
+        auto fresh = OpenLink(options, 0, /*hello_timeout_s=*/0.0);
         if (!fresh) return fresh.status();
         link = std::move(fresh);
         overlay.Reset();
         ++resets;
-        M2S_LOG(kInfo) << "SLAM reset: new session " << link->session->session_id();
+        M2S_LOG(kInfo) << "SLAM reset: new session " << link->session->session_id() << " ("
+                       << MsSince(reset_start) << " ms on the render thread)";
       }
     }
     if (action == LoopAction::kIdle) {

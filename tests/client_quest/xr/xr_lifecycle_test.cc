@@ -95,7 +95,9 @@ TEST(XrClientLifecycle, OverLcmToASeparateServer) {
                         << Quote((dir / "server.txt").string()) << " 2>&1 &\n"
                         << "pid=$!\n"
                         << "M2S_XR_SIM_REALTIME=1 "
-                        << Client(dir, "", "--lcm-url " + Quote(url) + " --frames 300" + kLight)
+                        << Client(dir, "",
+                                  "--lcm-url " + Quote(url) +
+                                      " --frames 300 --projector cpu --budget 2000 --no-mesh")
                         << "\nrc=$?\nkill -INT $pid\nwait $pid\nexit $rc\n";
   const int rc = RunBounded("unshare -rn sh " + script.string(), 180, dir / "log.txt");
   ASSERT_EQ(rc, 0) << ReadText(dir / "log.txt") << ReadText(dir / "server.txt");
