@@ -9,6 +9,7 @@
 // Prints one summary line (and a progress line while running on a terminal).
 #include <unistd.h>
 
+#include <algorithm>
 #include <fstream>
 #include <iostream>
 
@@ -74,6 +75,9 @@ int main(int argc, char** argv) {
   app.add_option("--outlier-ids", options.noise.wrong_id_fraction, "Fraction of wrong ids");
   app.add_option("--dropout", options.noise.dropout_probability, "Feature dropout probability");
   app.add_option("--seed", options.noise.seed, "Noise seed");
+  double duration_s = 0;
+  app.add_option("--duration", duration_s, "Only the first S seconds of the trajectory");
+  app.add_option("--budget", options.noise.budget, "At most N features per frame, spread evenly");
   app.add_option("--out", options.out_dir, "Output folder")->capture_default_str();
   app.add_flag(
       "--no-map-png", [&options](int64_t) { options.render_map = false; }, "Do not render map.png");
@@ -93,6 +97,8 @@ int main(int argc, char** argv) {
     }
     options.camera = m2s::Camera::FromHorizontalFov(width, height, fov_deg);
   }
+  if (duration_s > 0)
+    options.max_frames = std::max(1, static_cast<int>(duration_s * options.fps) + 1);
   options.on_device = lcm_url.empty();
   if (!lcm_url.empty()) options.lcm_url = lcm_url;
   options.progress = isatty(STDERR_FILENO) != 0;
