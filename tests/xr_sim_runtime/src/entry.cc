@@ -21,6 +21,12 @@ XrResult Runtime::Misuse(const char* function, XrResult result, const std::strin
   return result;
 }
 
+void Runtime::MisuseWithoutError(const char* function, const std::string& message) {
+  misuse_log_.push_back(std::string(function) + ": " + message);
+  std::cerr << "m2s_xr_sim: MISUSE #" << misuse_log_.size() << " in " << function << ": " << message
+            << std::endl;
+}
+
 void LogInfo(const std::string& message) { std::cerr << "m2s_xr_sim: " << message << std::endl; }
 
 const char* ResultName(XrResult result) {

@@ -137,8 +137,8 @@ XrResult XRAPI_CALL DestroyInstance(XrInstance instance) {
     it = rt.sessions.erase(it);
   }
   if (live_children > 0) {
-    rt.Misuse(kFn, XR_SUCCESS,
-              std::to_string(live_children) + " child handle(s) still alive at xrDestroyInstance");
+    rt.MisuseWithoutError(
+        kFn, std::to_string(live_children) + " child handle(s) still alive at xrDestroyInstance");
   }
   obj->counters.implicitly_destroyed += live_children;
   WriteReport(*obj, live_children);

@@ -137,6 +137,8 @@ class Runtime {
 
   // Logs "m2s_xr_sim: MISUSE #n in FUNCTION: RESULT: message", counts it, returns result.
   XrResult Misuse(const char* function, XrResult result, const std::string& message);
+  // Counts a misuse the call still succeeds with (handles left alive at xrDestroyInstance).
+  void MisuseWithoutError(const char* function, const std::string& message);
   int64_t misuse_count() const { return static_cast<int64_t>(misuse_log_.size()); }
   const std::vector<std::string>& misuse_log() const { return misuse_log_; }
 
