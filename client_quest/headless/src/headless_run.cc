@@ -8,6 +8,7 @@
 #include "m2s/client/client_session.h"
 #include "m2s/client/frame_source.h"
 #include "m2s/client/on_device_transport.h"
+#include "m2s/client/recording_transport.h"
 #include "m2s/common/cpu_projector.h"
 #include "m2s/common/logging.h"
 #include "m2s/common/scene.h"
@@ -85,6 +86,10 @@ Expected<HeadlessResult> RunHeadless(const HeadlessOptions& options) {
     transport = std::make_unique<client::OnDeviceTransport>(server);
   } else {
     transport = std::make_unique<client::LcmTransport>(options.lcm_url);
+  }
+  if (!options.record_log.empty()) {
+    transport =
+        std::make_unique<client::RecordingTransport>(std::move(transport), options.record_log);
   }
   client::ClientSessionOptions session_options;
   session_options.camera = options.camera;

@@ -40,6 +40,8 @@ struct HeadlessOptions {
   double pose_timeout_s = 10.0;
   // Server options of the on-device session manager.
   server_app::ServerOptions server;
+  // When not empty, every message the client publishes is also written to this LCM log.
+  std::string record_log;
   // Session ids (0: random).
   uint64_t session_seed = 0;
   // Called after each frame is sent, with its index (tests inject events here).

@@ -1,0 +1,200 @@
+// The server's session logic with a stand-in SLAM system: routing, per-reason drop counters,
+// session lifecycle (bye, timeout, max sessions), resync and the latest-wins queue.
+#include "m2s/server_app/session_manager.h"
+
+#include <chrono>
+#include <mutex>
+#include <thread>
+
+#include <gtest/gtest.h>
+
+#include "fake_system.h"
+
+namespace m2s::server_app {
+namespace {
+
+using wire::DropReason;
+
+struct Published {
+  std::mutex mutex;
+  std::vector<pose_estimate_t> poses;
+  std::vector<map_delta_t> maps;
+  std::vector<session_control_t> control;
+  void Add(const std::string& channel, const std::vector<uint8_t>& b) {
+    std::lock_guard<std::mutex> lock(mutex);
+    if (channel == wire::kPoseChannel)
+      poses.push_back(*wire::DecodePoseEstimate(b.data(), b.size()));
+    if (channel == wire::kMapChannel) maps.push_back(*wire::DecodeMapDelta(b.data(), b.size()));
+    if (channel == wire::kSessionChannel) {
+      control.push_back(*wire::DecodeSessionControl(b.data(), b.size()));
+    }
+  }
+};
+
+ServerOptions SyncOptions() {
+  ServerOptions options;
+  options.synchronous = true;
+  options.max_sessions = 2;
+  options.drop_log_period_s = 100;
+  return options;
+}
+
+wire::FeatureFrame Frame(int64_t session, int64_t seq) {
+  wire::FeatureFrame f;
+  f.session_id = session;
+  f.seq = seq;
+  f.capture_time_us = seq * 100000;
+  f.camera = Camera();
+  f.features = {{1, {10.f, 20.f}}, {2, {30.f, 40.f}}};
+  f.ground_truth_world_from_camera =
+      Pose3(Eigen::Quaterniond::Identity(), Eigen::Vector3d(seq, 0, 0));
+  return f;
+}
+
+std::vector<uint8_t> Control(int8_t type, int64_t session) {
+  session_control_t m{};
+  m.version = session_control_t::VERSION;
+  m.type = type;
+  m.session_id = session;
+  m.camera = wire::ToMessage(Camera());
+  return wire::Encode(m);
+}
+
+class SessionManagerTest : public ::testing::Test {
+ protected:
+  void Make(ServerOptions options) {
+    manager_ = std::make_unique<SessionManager>(
+        options, [this](const std::string& c, std::vector<uint8_t> b) { published_.Add(c, b); },
+        &testing::FakeSystem::Create);
+  }
+  void Send(const std::string& channel, const std::vector<uint8_t>& bytes) {
+    manager_->HandleMessage(channel, bytes.data(), bytes.size());
+  }
+  void SendFrame(const wire::FeatureFrame& f) {
+    Send(wire::kFrameChannel, wire::EncodeFeatureFrame(f));
+  }
+  Published published_;
+  std::unique_ptr<SessionManager> manager_;
+};
+
+TEST_F(SessionManagerTest, HelloThenFramesGivePosesAndDeltasInRevisionOrder) {
+  Make(SyncOptions());
+  Send(wire::kSessionChannel, Control(session_control_t::HELLO, 7));
+  ASSERT_EQ(published_.control.size(), 1u);
+  EXPECT_EQ(published_.control[0].type, +session_control_t::HELLO_ACK);
+  EXPECT_EQ(published_.control[0].server_instance, manager_->server_instance());
+  for (int seq = 1; seq <= 5; ++seq) SendFrame(Frame(7, seq));
+  ASSERT_EQ(published_.poses.size(), 5u);
+  for (int i = 0; i < 5; ++i) {
+    EXPECT_EQ(published_.poses[i].seq, i + 1);
+    EXPECT_EQ(published_.poses[i].state, +pose_estimate_t::STATE_OK);
+    EXPECT_DOUBLE_EQ(published_.poses[i].world_from_camera.t[0], i + 1);
+  }
+  ASSERT_EQ(published_.maps.size(), 5u);
+  for (size_t i = 0; i < published_.maps.size(); ++i) {
+    EXPECT_EQ(published_.maps[i].base_revision, static_cast<int64_t>(i));
+    EXPECT_EQ(published_.maps[i].revision, static_cast<int64_t>(i + 1));
+  }
+  Send(wire::kSessionChannel, Control(session_control_t::RESYNC_REQUEST, 7));
+  ASSERT_EQ(published_.maps.size(), 6u);
+  EXPECT_TRUE(published_.maps.back().full);
+  EXPECT_EQ(published_.maps.back().num_points, 5);
+  const ServerCounters c = manager_->Counters();
+  EXPECT_EQ(c.frames_in, 5);
+  EXPECT_EQ(c.frames_processed, 5);
+  EXPECT_EQ(c.total_drops(), 0);
+}
+
+TEST_F(SessionManagerTest, EveryBadMessageIsCountedUnderItsReason) {
+  Make(SyncOptions());
+  SendFrame(Frame(1, 5));
+  std::vector<std::pair<DropReason, std::vector<uint8_t>>> bad;
+  bad.push_back({DropReason::kBadBytes, {1, 2, 3}});
+  bad.push_back({DropReason::kWrongFingerprint, Control(session_control_t::HELLO, 1)});
+  feature_frame_t m = wire::ToMessage(Frame(1, 6));
+  m.version = 9;
+  bad.push_back({DropReason::kBadVersion, wire::Encode(m)});
+  m = wire::ToMessage(Frame(1, 6));
+  m.ids[1] = m.ids[0];
+  bad.push_back({DropReason::kDuplicateId, wire::Encode(m)});
+  m = wire::ToMessage(Frame(1, 6));
+  m.ids[0] = -3;
+  bad.push_back({DropReason::kNegativeId, wire::Encode(m)});
+  m = wire::ToMessage(Frame(1, 6));
+  m.u_q[0] = static_cast<int16_t>(640 * 64);
+  bad.push_back({DropReason::kOutOfImage, wire::Encode(m)});
+  m = wire::ToMessage(Frame(1, 6));
+  m.ground_truth_world_from_camera.q[0] = std::nan("");
+  bad.push_back({DropReason::kNonFinite, wire::Encode(m)});
+  bad.push_back({DropReason::kSeqNotIncreasing, wire::EncodeFeatureFrame(Frame(1, 5))});
+  bad.push_back({DropReason::kSeqNotIncreasing, wire::EncodeFeatureFrame(Frame(1, 4))});
+  wire::FeatureFrame other_camera = Frame(1, 9);
+  other_camera.camera.fx += 1;
+  bad.push_back({DropReason::kCameraChanged, wire::EncodeFeatureFrame(other_camera)});
+  for (const auto& [reason, bytes] : bad) Send(wire::kFrameChannel, bytes);
+  // Session channel.
+  Send(wire::kSessionChannel, wire::EncodeFeatureFrame(Frame(1, 10)));
+  Send(wire::kSessionChannel, Control(99, 1));
+  Send(wire::kSessionChannel, Control(session_control_t::RESYNC_REQUEST, 12345));
+  const ServerCounters c = manager_->Counters();
+  EXPECT_EQ(c.total_drops(), static_cast<int64_t>(bad.size()) + 3);
+  for (const auto& [reason, bytes] : bad) {
+    EXPECT_GE(c.drops[static_cast<int>(reason)], 1) << wire::ToString(reason);
+  }
+  EXPECT_EQ(c.drops[static_cast<int>(DropReason::kSeqNotIncreasing)], 2);
+  EXPECT_EQ(c.drops[static_cast<int>(DropReason::kWrongFingerprint)], 2);
+  EXPECT_EQ(c.drops[static_cast<int>(DropReason::kBadSessionMessage)], 1);
+  EXPECT_EQ(c.drops[static_cast<int>(DropReason::kUnknownSession)], 1);
+  EXPECT_EQ(c.frames_processed, 1);
+  const server_stats_t stats = manager_->StatsMessage();
+  EXPECT_EQ(stats.num_drop_reasons, wire::kNumDropReasons);
+}
+
+TEST_F(SessionManagerTest, ByeMaxSessionsAndTimeout) {
+  ServerOptions options = SyncOptions();
+  options.session_timeout_s = 0.2;
+  Make(options);
+  SendFrame(Frame(1, 1));
+  SendFrame(Frame(2, 1));
+  SendFrame(Frame(3, 1));  // third session: refused
+  EXPECT_EQ(manager_->Counters().drops[static_cast<int>(DropReason::kMaxSessions)], 1);
+  Send(wire::kSessionChannel, Control(session_control_t::BYE, 1));
+  SendFrame(Frame(1, 2));
+  EXPECT_EQ(manager_->Counters().drops[static_cast<int>(DropReason::kEndedSession)], 1);
+  SendFrame(Frame(3, 1));  // room again
+  EXPECT_EQ(manager_->Counters().sessions_active, 2);
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  manager_->Tick();
+  EXPECT_EQ(manager_->Counters().sessions_active, 0);
+  EXPECT_EQ(manager_->Counters().sessions_ended, 3);
+  int ended = 0, rejected = 0;
+  for (const auto& m : published_.control) {
+    ended += m.type == session_control_t::SESSION_ENDED;
+    rejected += m.type == session_control_t::REJECTED;
+  }
+  EXPECT_EQ(ended, 3);
+  EXPECT_EQ(rejected, 1);
+}
+
+TEST_F(SessionManagerTest, WorkerModeTracksEveryFrameWhenPacedAndShutsDownCleanly) {
+  ServerOptions options;
+  options.queue_capacity = 1;
+  Make(options);
+  for (int seq = 1; seq <= 50; ++seq) {
+    SendFrame(Frame(4, seq));
+    manager_->Drain();
+  }
+  EXPECT_EQ(manager_->Counters().frames_processed, 50);
+  EXPECT_EQ(manager_->Counters().frames_skipped, 0);
+  // Unpaced: the latest-wins queue skips; every frame is processed or skipped.
+  for (int seq = 51; seq <= 2050; ++seq) SendFrame(Frame(4, seq));
+  manager_->Drain();
+  const ServerCounters c = manager_->Counters();
+  EXPECT_EQ(c.frames_processed + c.frames_skipped, 2050);
+  manager_->Shutdown();
+  manager_->Shutdown();
+  EXPECT_EQ(manager_->Counters().sessions_active, 0);
+}
+
+}  // namespace
+}  // namespace m2s::server_app
