@@ -155,8 +155,10 @@ struct Options {
   int mapping_queue_capacity = 4;
   // New points need this angle between their rays.
   double min_triangulation_parallax_deg = 1.0;
-  // A keyframe is redundant when this fraction of its points is seen by >= 3 other keyframes.
-  double keyframe_redundancy = 0.9;
+  // A keyframe is redundant when this fraction of its points is seen by >= 3 other keyframes
+  // (1.0: only fully redundant ones; with exact association every keyframe adds constraints,
+  // and culling at ORB-SLAM2's 0.9 costs accuracy under noise: docs/results/h4.md).
+  double keyframe_redundancy = 1.0;
   // Drift correction: triggered when a keyframe re-observes at least loop_min_points points
   // unseen for loop_min_keyframe_gap keyframes, and their positions disagree with the
   // current estimate by more than loop_min_error (fraction of the median depth).
