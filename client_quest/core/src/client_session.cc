@@ -114,7 +114,10 @@ Expected<int64_t> ClientSession::Send(wire::FeatureFrame frame) {
     record.seq = seq;
     record.session_id = session_id_;
     record.capture_time_us = frame.capture_time_us;
-    record.ground_truth_world_from_camera = frame.ground_truth_world_from_camera;
+    if (frame.ground_truth_world_from_camera) {  // as the server sees it (wire round trip)
+      auto wire_pose = wire::FromMessage(wire::ToMessage(*frame.ground_truth_world_from_camera));
+      if (wire_pose) record.ground_truth_world_from_camera = *wire_pose;
+    }
     record.send_wall_us = frame.send_wall_us;
     record.num_features = static_cast<int>(frame.features.size());
     record.encoded_bytes = bytes.size();
