@@ -76,10 +76,13 @@ inline std::string RuntimeEnv(const fs::path& dir, const fs::path& trajectory,
   return env.str();
 }
 
-// Runs a shell command line with a time bound; returns the exit status (124: timed out).
+// Runs a shell command line with a time bound; returns the exit status (124: timed out). The
+// line goes through a script file next to the log so that its own quoting stays intact.
 inline int RunBounded(const std::string& command, int timeout_s, const fs::path& log) {
-  const std::string line = "timeout " + std::to_string(timeout_s) + " sh -c " + Quote(command) +
-                           " > " + Quote(log.string()) + " 2>&1";
+  const fs::path script = fs::path(log).replace_extension(".sh");
+  std::ofstream(script) << command << "\n";
+  const std::string line = "timeout " + std::to_string(timeout_s) + " sh " +
+                           Quote(script.string()) + " > " + Quote(log.string()) + " 2>&1";
   const int status = std::system(line.c_str());
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }

@@ -65,6 +65,21 @@ TEST(XrClientLifecycle, InstanceLossLeavesCleanly) {
   EXPECT_TRUE(HasState(metrics, "INSTANCE_LOST"));
 }
 
+TEST(XrClientLifecycle, StdinKeysToggleAndQuitBeforeTheSessionRuns) {
+  const fs::path dir = TestDir();
+  WritePlayedTrajectory(dir / "head.tum", 2.0);
+  // The keys are read on the first loop iteration, before the session is READY: the exit is
+  // requested as soon as the session runs (READY -> begin -> exit -> STOPPING -> EXITING).
+  const int rc =
+      RunBounded("printf 'o\\nq\\n' | " + Client(dir, "", "--keys" + kLight), 60, dir / "log.txt");
+  ASSERT_EQ(rc, 0) << ReadText(dir / "log.txt");
+  ExpectCleanRuntimeReport(ReadJson(dir / "runtime_report.json"));
+  const nlohmann::json metrics = ReadJson(dir / "out" / "xr_metrics.json");
+  EXPECT_EQ(metrics["overlay_toggles"], 1);
+  EXPECT_LE(metrics["frames"].get<int>(), 3);
+  EXPECT_TRUE(HasState(metrics, "XR_SESSION_STATE_EXITING"));
+}
+
 TEST(XrClientLifecycle, GpuProjectorOnTheAppsContext) {
   const fs::path dir = TestDir();
   WritePlayedTrajectory(dir / "head.tum", 2.0);
@@ -99,7 +114,7 @@ TEST(XrClientLifecycle, OverLcmToASeparateServer) {
                                   "--lcm-url " + Quote(url) +
                                       " --frames 300 --projector cpu --budget 2000 --no-mesh")
                         << "\nrc=$?\nkill -INT $pid\nwait $pid\nexit $rc\n";
-  const int rc = RunBounded("unshare -rn sh " + script.string(), 180, dir / "log.txt");
+  const int rc = RunBounded("unshare -rn sh " + Quote(script.string()), 180, dir / "log.txt");
   ASSERT_EQ(rc, 0) << ReadText(dir / "log.txt") << ReadText(dir / "server.txt");
   ExpectCleanRuntimeReport(ReadJson(dir / "runtime_report.json"));
   auto estimate = ReadTum((dir / "out" / "trajectory.tum").string());
