@@ -109,5 +109,29 @@ TEST(XrClient, OnDeviceTracksThePlayedHeadAndDrawsTheOverlay) {
   EXPECT_GT(red_near_vertex, 0.9 * red) << "map points drawn away from the scene's vertices";
 }
 
+TEST(XrClient, StageSpaceIsTheWorldWhenAsked) {
+  // STAGE's origin sits at `offset` in LOCAL (the played trajectory's frame): with --stage the
+  // app's world is STAGE, so every true camera position is the played one minus the offset.
+  const fs::path dir = TestDir();
+  const Trajectory played = WritePlayedTrajectory(dir / "head.tum", 1.0);
+  const Eigen::Vector3d offset(0.5, -1.6, 0.25);
+  const int rc = RunBounded("M2S_XR_SIM_STAGE_OFFSET=0.5,-1.6,0.25 " +
+                                ClientCommand(dir, dir / "head.tum", "", "",
+                                              "--stage --projector cpu --budget 500 --no-mesh "
+                                              "--frames 40"),
+                            60, dir / "log.txt");
+  ASSERT_EQ(rc, 0) << ReadText(dir / "log.txt");
+  ExpectCleanRuntimeReport(ReadJson(dir / "runtime_report.json"));
+  auto truth = ReadTum((dir / "out" / "groundtruth.tum").string());
+  ASSERT_TRUE(truth.ok()) << truth.error();
+  ASSERT_GE(truth->size(), 30u);
+  for (const TimedPose& p : *truth) {
+    auto reference = played.Interpolate(p.timestamp);
+    ASSERT_TRUE(reference.ok());
+    EXPECT_LT((reference->translation() - offset - p.world_from_camera.translation()).norm(), 1e-4);
+    EXPECT_NEAR(std::abs(reference->rotation().dot(p.world_from_camera.rotation())), 1.0, 1e-6);
+  }
+}
+
 }  // namespace
 }  // namespace m2s::xr_test
