@@ -4,6 +4,8 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <fstream>
+#include <iomanip>
 #include <optional>
 #include <thread>
 #include <vector>
@@ -51,8 +53,10 @@ std::optional<Alignment> AlignTrajectory(const std::vector<Eigen::Vector3d>& est
 
 // Fills the trajectory and map metrics from the system's final state and the online poses.
 void Evaluate(const Scene& scene, const Trajectory& ground_truth, slam::System& system,
-              const std::vector<slam::TrackResult>& results, RunMetrics* m) {
+              const std::vector<slam::TrackResult>& results, const std::string& dump_prefix,
+              RunMetrics* m) {
   std::vector<Eigen::Vector3d> estimate, truth;
+  std::vector<slam::TrajectoryEntry> tracked;
   for (const slam::TrajectoryEntry& entry : system.Trajectory()) {
     if (!HasPose(entry.state) || entry.seq < 0 ||
         entry.seq >= static_cast<int64_t>(ground_truth.size())) {
@@ -60,8 +64,26 @@ void Evaluate(const Scene& scene, const Trajectory& ground_truth, slam::System& 
     }
     estimate.push_back(entry.world_from_camera.translation());
     truth.push_back(ground_truth[entry.seq].world_from_camera.translation());
+    tracked.push_back(entry);
   }
   const std::optional<Alignment> final_alignment = AlignTrajectory(estimate, truth);
+  if (final_alignment && !dump_prefix.empty()) {
+    std::ofstream est(dump_prefix + "_estimate.tum");
+    std::ofstream gt(dump_prefix + "_truth.tum");
+    est << std::setprecision(17);
+    gt << std::setprecision(17);
+    for (const slam::TrajectoryEntry& entry : tracked) {
+      const Pose3 aligned =
+          final_alignment->truth_from_estimate.TransformPose(entry.world_from_camera);
+      const Pose3& g = ground_truth[entry.seq].world_from_camera;
+      for (auto [out, pose] : {std::pair{&est, aligned}, std::pair{&gt, g}}) {
+        const Eigen::Quaterniond& q = pose.rotation();
+        *out << entry.timestamp << ' ' << pose.translation().x() << ' ' << pose.translation().y()
+             << ' ' << pose.translation().z() << ' ' << q.x() << ' ' << q.y() << ' ' << q.z() << ' '
+             << q.w() << '\n';
+      }
+    }
+  }
   if (final_alignment) {
     m->ate_rmse_m = final_alignment->rmse;
     m->ate_max_m = final_alignment->max;
@@ -200,7 +222,7 @@ Expected<RunMetrics> RunAccuracy(const Scene& scene, const Sequence& sequence,
   }
   m.wall_s = std::chrono::duration<double>(Clock::now() - start).count();
   CountResults(results, times_ms, &m);
-  Evaluate(scene, *ground_truth, system, results, &m);
+  Evaluate(scene, *ground_truth, system, results, config.dump_prefix, &m);
   system.Shutdown();
   return m;
 }

@@ -23,6 +23,9 @@ struct RunConfig {
   double noise_px = 0.5;
   double wrong_id_fraction = 0.01;
   uint64_t noise_seed = 1;
+  // When set, the Sim3-aligned final trajectory and the ground truth of the tracked frames are
+  // written there as TUM files (<prefix>_estimate.tum, <prefix>_truth.tum).
+  std::string dump_prefix;
 };
 
 struct RunMetrics {

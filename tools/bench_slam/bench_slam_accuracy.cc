@@ -87,7 +87,10 @@ int main(int argc, char** argv) {
   double duration_s = 0.0;
   int budget = 0;
   int vertex_stride = 1;
+  double noise_px = 0.5;
+  double wrong_ids = 0.01;
   std::string json_path;
+  std::string dump_dir;
   app.add_option("--fps", fps, "frame rates")->check(CLI::PositiveNumber);
   app.add_option("--modes", modes, "noise-free, noisy, realtime, realtime-noisy")
       ->check(CLI::IsMember({"noise-free", "noisy", "realtime", "realtime-noisy"}));
@@ -99,6 +102,12 @@ int main(int argc, char** argv) {
   app.add_option("--vertex-stride", vertex_stride,
                  "use only vertices with id % stride == 0 (a consistent, sparser scene)")
       ->check(CLI::PositiveNumber);
+  app.add_option("--noise-px", noise_px, "noisy modes: Gaussian pixel noise sigma")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--wrong-ids", wrong_ids, "noisy modes: fraction of features with a wrong id")
+      ->check(CLI::Range(0.0, 1.0));
+  app.add_option("--dump-trajectories", dump_dir,
+                 "write aligned estimate and truth (TUM) per run into this folder");
   app.add_option("--json", json_path, "also write the results as JSON to this file");
   CLI11_PARSE(app, argc, argv);
 
@@ -140,6 +149,12 @@ int main(int argc, char** argv) {
         config.realtime = mode.rfind("realtime", 0) == 0;
         config.budget = budget;
         config.vertex_stride = vertex_stride;
+        config.noise_px = noise_px;
+        if (!dump_dir.empty()) {
+          config.dump_prefix = dump_dir + "/" + sequence.name + "_" + mode + "_" +
+                               std::to_string(static_cast<int>(rate));
+        }
+        config.wrong_id_fraction = wrong_ids;
         m2s::Expected<RunMetrics> metrics = m2s::bench::RunAccuracy(scene, sequence, config);
         if (!metrics) {
           std::cerr << "bench_slam_accuracy: " << sequence.name << " " << mode << " " << rate
