@@ -18,6 +18,8 @@ constexpr int kFixedKeyframesPerWindow = 2;
 constexpr int kRedundancyObservers = 3;
 // Covisibility needed to count as a neighbour in the local window.
 constexpr int kMinCovisiblePoints = 15;
+// Points created from two views must gain an observation within this many keyframes.
+constexpr int kRecentPointKeyframes = 3;
 // Maps with at most this many keyframes get a global BA per keyframe instead of a local one.
 constexpr int kGlobalBaKeyframes = 10;
 
@@ -106,6 +108,7 @@ void LocalMapper::Process(const KeyframeCandidate& c) {
   } else {
     LocalBundleAdjust(c.id);
   }
+  CullRecentPoints();
   CullKeyframes(c.id);
   std::lock_guard<std::mutex> lock(stats_mutex_);
   ++stats_.keyframes_processed;
@@ -176,6 +179,11 @@ void LocalMapper::TriangulateNewPoints(KeyframeId kf_id) {
       for (const KeyframeId o : np.observers) m.AddObservation(np.id, o);
     }
   });
+  RecentPoints recent{kf_id, {}};
+  for (const NewPoint& np : created) {
+    if (np.observers.size() <= 2) recent.ids.push_back(np.id);
+  }
+  recent_points_.push_back(std::move(recent));
   std::lock_guard<std::mutex> lock(stats_mutex_);
   stats_.points_created += static_cast<int64_t>(created.size());
 }
@@ -361,6 +369,23 @@ void LocalMapper::GlobalBundleAdjust(int max_iterations, int max_points) {
   RetriangulatePoints(rest);
   std::lock_guard<std::mutex> lock(stats_mutex_);
   ++stats_.global_bundle_adjustments;
+}
+
+void LocalMapper::CullRecentPoints() {
+  // A genuine point made from two views is re-observed by the next keyframes (ids are exact);
+  // one that is not (a wrong id that happened to triangulate) goes.
+  while (recent_points_.size() > static_cast<size_t>(kRecentPointKeyframes)) {
+    const RecentPoints recent = std::move(recent_points_.front());
+    recent_points_.pop_front();
+    map_->Write([&](MapData& m) {
+      for (const VertexId id : recent.ids) {
+        const MapPoint* p = m.point(id);
+        if (p != nullptr && p->reference_keyframe == recent.keyframe && p->observers.size() <= 2) {
+          m.RemovePoint(id);
+        }
+      }
+    });
+  }
 }
 
 void LocalMapper::CullKeyframes(KeyframeId kf_id) {

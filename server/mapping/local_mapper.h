@@ -12,6 +12,7 @@
 #pragma once
 
 #include <atomic>
+#include <deque>
 #include <memory>
 #include <vector>
 
@@ -53,6 +54,7 @@ class LocalMapper {
   void TriangulateNewPoints(KeyframeId kf_id);
   void LocalBundleAdjust(KeyframeId kf_id);
   void CullKeyframes(KeyframeId kf_id);
+  void CullRecentPoints();
   // Multi-view DLT of points from all their observers (poses as they are now).
   void RetriangulatePoints(const std::vector<VertexId>& ids);
   // Applies a solved BA problem: poses, positions, outlier observations, unsupported points.
@@ -62,6 +64,12 @@ class LocalMapper {
   Map* map_;
   TriangulationChecks checks_;
   DriftCorrector drift_;
+  // Two-view points of the last keyframes, checked for new observations.
+  struct RecentPoints {
+    KeyframeId keyframe = 0;
+    std::vector<VertexId> ids;
+  };
+  std::deque<RecentPoints> recent_points_;
   mutable std::mutex stats_mutex_;
   MappingStats stats_;
 };
