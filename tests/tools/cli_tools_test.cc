@@ -1,0 +1,165 @@
+// Runs m2s_features and m2s_eval as processes and checks what they write.
+#include <sys/wait.h>
+
+#include <unistd.h>
+#include <cstdio>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <string>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "m2s/common/camera.h"
+#include "m2s/common/scene.h"
+#include "m2s/common/trajectory.h"
+
+namespace m2s {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct RunResult {
+  int exit_code = -1;
+  std::string out;  // stdout
+  std::string err;  // stderr
+};
+
+// Runs `bin args` with stdout and stderr captured to files in `dir`.
+RunResult RunTool(const fs::path& dir, const std::string& bin, const std::string& args) {
+  const fs::path out = dir / "stdout.txt", err = dir / "stderr.txt";
+  const std::string cmd = std::string(M2S_BINARY_DIR) + "/bin/" + bin + " " + args + " >" +
+                          out.string() + " 2>" + err.string();
+  const int status = std::system(cmd.c_str());
+  RunResult r;
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  std::ifstream o(out), e(err);
+  std::stringstream so, se;
+  so << o.rdbuf();
+  se << e.rdbuf();
+  r.out = so.str();
+  r.err = se.str();
+  return r;
+}
+
+class CliToolsTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("m2s_cli_test_" + std::to_string(::getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  fs::path dir_;
+};
+
+TEST_F(CliToolsTest, FeaturesMatchNaiveProjectionOfTheDefaultScene) {
+  const Trajectory traj = DefaultTrajectory();
+  ASSERT_TRUE(WriteTum((dir_ / "gt.tum").string(), traj).ok());
+  const fs::path csv = dir_ / "features.csv";
+  const RunResult r =
+      RunTool(dir_, "m2s_features",
+              "--default-scene --trajectory " + (dir_ / "gt.tum").string() +
+                  " --index 100 --width 640 --height 480 --fov-deg 90 --out " + csv.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+
+  // Independent reference: project every vertex in double precision, one at a time.
+  const Scene scene = MakeDefaultScene();
+  const Camera cam = Camera::FromHorizontalFov(640, 480, 90.0);
+  const Pose3 camera_from_world = traj[100].world_from_camera.Inverse();
+  std::map<uint32_t, Eigen::Vector2d> expected;
+  for (size_t id = 0; id < scene.positions.size(); ++id) {
+    const Eigen::Vector3d pc = camera_from_world * scene.positions[id].cast<double>();
+    if (pc.z() < cam.near || pc.z() > cam.far) continue;
+    const Eigen::Vector2d uv = cam.Project(pc);
+    // Vertices within 1e-3 px of the border are ambiguous in float; skip them on both sides.
+    if (uv.x() < 1e-3 || uv.y() < 1e-3 || uv.x() > cam.width - 1e-3 || uv.y() > cam.height - 1e-3)
+      continue;
+    expected[static_cast<uint32_t>(id)] = uv;
+  }
+  ASSERT_GT(expected.size(), 1000u);
+
+  std::ifstream in(csv);
+  std::string line;
+  ASSERT_TRUE(std::getline(in, line));
+  EXPECT_EQ(line, "id,u,v,depth,x,y,z");
+  size_t matched = 0;
+  while (std::getline(in, line)) {
+    std::stringstream ss(line);
+    std::string field;
+    double v[7];
+    for (double& x : v) {
+      ASSERT_TRUE(std::getline(ss, field, ',')) << line;
+      x = std::stod(field);
+    }
+    const auto id = static_cast<uint32_t>(v[0]);
+    const auto it = expected.find(id);
+    if (it == expected.end()) continue;  // border-ambiguous vertex
+    ++matched;
+    EXPECT_NEAR(v[1], it->second.x(), 1e-3);
+    EXPECT_NEAR(v[2], it->second.y(), 1e-3);
+    EXPECT_NEAR(v[4], scene.positions[id].x(), 1e-5);
+    EXPECT_NEAR(v[6], scene.positions[id].z(), 1e-5);
+  }
+  EXPECT_EQ(matched, expected.size());
+}
+
+TEST_F(CliToolsTest, FeaturesRejectsBadInputWithOneLine) {
+  const RunResult missing =
+      RunTool(dir_, "m2s_features", "--mesh /nonexistent/mesh.obj --index 0 --out x.csv");
+  EXPECT_NE(missing.exit_code, 0);
+  EXPECT_NE(missing.err.find("nonexistent"), std::string::npos) << missing.err;
+  std::ofstream(dir_ / "bad.tum") << "0 1 2 3\n";
+  const RunResult bad_traj = RunTool(dir_, "m2s_features",
+                                     "--default-scene --trajectory " + (dir_ / "bad.tum").string() +
+                                         " --index 0 --out " + (dir_ / "x.csv").string());
+  EXPECT_NE(bad_traj.exit_code, 0);
+  EXPECT_FALSE(bad_traj.err.empty());
+}
+
+TEST_F(CliToolsTest, EvalRecoversAKnownSimilarity) {
+  const Trajectory gt = DefaultTrajectory();
+  const Sim3 est_from_gt(
+      0.4, Eigen::Quaterniond(Eigen::AngleAxisd(0.8, Eigen::Vector3d(1, -2, 0.5).normalized())),
+      Eigen::Vector3d(2, -1, 0.3));
+  std::vector<TimedPose> est_poses;
+  for (const TimedPose& p : gt)
+    est_poses.push_back({p.timestamp, est_from_gt.TransformPose(p.world_from_camera)});
+  const Expected<Trajectory> est = Trajectory::FromPoses(est_poses);
+  ASSERT_TRUE(est.ok());
+  ASSERT_TRUE(WriteTum((dir_ / "gt.tum").string(), gt).ok());
+  ASSERT_TRUE(WriteTum((dir_ / "est.tum").string(), *est).ok());
+
+  const RunResult sim3 = RunTool(
+      dir_, "m2s_eval",
+      (dir_ / "gt.tum").string() + " " + (dir_ / "est.tum").string() + " --align sim3 --json");
+  ASSERT_EQ(sim3.exit_code, 0) << sim3.err;
+  const nlohmann::json j = nlohmann::json::parse(sim3.out);
+  EXPECT_LT(j.at("ate_rmse").get<double>(), 1e-6);
+  EXPECT_NEAR(j.at("scale").get<double>(), 1.0 / 0.4, 1e-6);
+  EXPECT_EQ(j.at("n_matched").get<int>(), static_cast<int>(gt.size()));
+  for (const char* key : {"ate_mean", "ate_max", "rpe_rmse"}) EXPECT_TRUE(j.contains(key)) << key;
+
+  // Rigid alignment cannot absorb the scale: the error must be large.
+  const RunResult se3 = RunTool(
+      dir_, "m2s_eval",
+      (dir_ / "gt.tum").string() + " " + (dir_ / "est.tum").string() + " --align se3 --json");
+  ASSERT_EQ(se3.exit_code, 0) << se3.err;
+  EXPECT_GT(nlohmann::json::parse(se3.out).at("ate_rmse").get<double>(), 0.1);
+}
+
+TEST_F(CliToolsTest, EvalRejectsBadInputWithOneLine) {
+  const RunResult r = RunTool(dir_, "m2s_eval", "/nonexistent/gt.tum /nonexistent/est.tum --json");
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_TRUE(r.out.empty());
+  EXPECT_NE(r.err.find("nonexistent"), std::string::npos) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+}
+
+}  // namespace
+}  // namespace m2s
