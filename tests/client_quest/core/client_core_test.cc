@@ -76,7 +76,7 @@ class LossyTransport final : public Transport {
 
 TEST(ClientSessionTest, ResyncAfterDroppedDeltasRestoresTheWholeMap) {
   server_app::ServerOptions server;
-  server.map_rate_hz = 1000;  // a delta after nearly every frame
+  server.synchronous = true;  // a delta after every frame, deterministic
   LossyTransport transport(
       std::make_unique<OnDeviceTransport>(server, &m2s::testing::FakeSystem::Create));
   ClientSessionOptions options;
