@@ -106,6 +106,7 @@ void BM_TrackFrame(benchmark::State& state) {
   size_t next = 0;
   std::vector<double> times_ms, cpu_ms;
   int lost = 0;
+  int keyframes = 0;
   for (auto _ : state) {
     if (system == nullptr || next == frames.size()) {
       state.PauseTiming();
@@ -125,11 +126,13 @@ void BM_TrackFrame(benchmark::State& state) {
     const double cpu = ThreadCpuMs() - cpu_start;
     const double ms =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-    if (result.state == slam::TrackingState::kOk ||
-        result.state == slam::TrackingState::kRelocalized) {
+    const bool tracked = result.state == slam::TrackingState::kOk ||
+                         result.state == slam::TrackingState::kRelocalized;
+    if (tracked && result.keyframe_created) ++keyframes;
+    if (tracked && !result.keyframe_created) {
       times_ms.push_back(ms);
       cpu_ms.push_back(cpu);
-    } else if (result.state == slam::TrackingState::kLost) {
+    } else if (!tracked && result.state == slam::TrackingState::kLost) {
       ++lost;
     }
   }
@@ -144,6 +147,7 @@ void BM_TrackFrame(benchmark::State& state) {
     state.counters["tracked"] = static_cast<double>(times_ms.size());
   }
   state.counters["lost"] = lost;
+  state.counters["keyframes"] = keyframes;
   state.counters["features"] = features / std::max<size_t>(1, frames.size());
 }
 BENCHMARK(BM_TrackFrame)->Arg(30)->Iterations(1500)->Unit(benchmark::kMicrosecond);
