@@ -3,7 +3,7 @@
 #include <cmath>
 #include <limits>
 
-#include <Eigen/SVD>
+#include <Eigen/Eigenvalues>
 
 namespace m2s::slam {
 
@@ -12,18 +12,29 @@ std::optional<Eigen::Vector3d> TriangulateDlt(const Camera& camera,
                                               const std::vector<Eigen::Vector2d>& uv) {
   const size_t n = camera_from_world.size();
   if (n < 2 || uv.size() != n) return std::nullopt;
-  Eigen::MatrixXd a(2 * n, 4);
+  // Each view adds two rows of the DLT system A h = 0; the null vector of A is the eigenvector
+  // of the 4x4 normal matrix A^T A with the smallest eigenvalue. Accumulating A^T A keeps the
+  // work fixed-size (no dynamic SVD per point); the rows are normalised so that every view
+  // weighs the same.
+  Eigen::Matrix4d normal = Eigen::Matrix4d::Zero();
   for (size_t i = 0; i < n; ++i) {
     Eigen::Matrix<double, 3, 4> p;
     p.leftCols<3>() = camera_from_world[i].RotationMatrix();
     p.col(3) = camera_from_world[i].translation();
     const double x = (uv[i].x() - camera.cx) / camera.fx;
     const double y = (uv[i].y() - camera.cy) / camera.fy;
-    a.row(2 * i) = x * p.row(2) - p.row(0);
-    a.row(2 * i + 1) = y * p.row(2) - p.row(1);
+    Eigen::Matrix<double, 2, 4> rows;
+    rows.row(0) = x * p.row(2) - p.row(0);
+    rows.row(1) = y * p.row(2) - p.row(1);
+    for (int r = 0; r < 2; ++r) {
+      const double norm = rows.row(r).norm();
+      if (norm > 0.0) rows.row(r) /= norm;
+    }
+    normal.noalias() += rows.transpose() * rows;
   }
-  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(a, Eigen::ComputeFullV);
-  const Eigen::Vector4d h = svd.matrixV().col(3);
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix4d> eig(normal);
+  if (eig.info() != Eigen::Success) return std::nullopt;
+  const Eigen::Vector4d h = eig.eigenvectors().col(0);  // eigenvalues in increasing order
   if (std::abs(h[3]) < 1e-12) return std::nullopt;
   const Eigen::Vector3d point = h.head<3>() / h[3];
   if (!point.allFinite()) return std::nullopt;
