@@ -278,30 +278,50 @@ void LocalMapper::LocalBundleAdjust(KeyframeId kf_id) {
 
 void LocalMapper::RetriangulatePoints(const std::vector<VertexId>& ids) {
   if (ids.empty()) return;
-  std::vector<std::pair<VertexId, Eigen::Vector3d>> updated;
-  const double max_err_sq = checks_.max_reprojection_px * checks_.max_reprojection_px;
+  // Copy the observations under the map lock and triangulate outside it: tracking reads the
+  // map on every frame and must not wait for thousands of triangulations.
+  struct Job {
+    VertexId id;
+    size_t begin;  // range in the flat observation arrays
+    size_t end;
+  };
+  std::vector<Job> jobs;
+  std::vector<Pose3> poses;
+  std::vector<Eigen::Vector2d> uvs;
+  jobs.reserve(ids.size());
   map_->Read([&](const MapData& m) {
-    std::vector<Pose3> poses;
-    std::vector<Eigen::Vector2d> uvs;
+    std::unordered_map<KeyframeId, Pose3> camera_from_world;
     for (const VertexId id : ids) {
       const MapPoint* p = m.point(id);
       if (p == nullptr || p->observers.size() < 2) continue;
-      poses.clear();
-      uvs.clear();
+      const size_t begin = poses.size();
       for (const KeyframeId o : p->observers) {
         const Keyframe* kf = m.keyframe(o);
-        poses.push_back(kf->world_from_camera.Inverse());
+        auto it = camera_from_world.find(o);
+        if (it == camera_from_world.end())
+          it = camera_from_world.emplace(o, kf->world_from_camera.Inverse()).first;
+        poses.push_back(it->second);
         uvs.push_back(*kf->Find(id));
       }
-      const auto q = TriangulateDlt(options_.camera, poses, uvs);
-      if (!q) continue;
-      bool ok = true;
-      for (size_t k = 0; k < poses.size() && ok; ++k) {
-        ok = ReprojectionErrorSq(options_.camera, poses[k], *q, uvs[k]) <= max_err_sq;
-      }
-      if (ok) updated.emplace_back(id, *q);
+      jobs.push_back({id, begin, poses.size()});
     }
   });
+  std::vector<std::pair<VertexId, Eigen::Vector3d>> updated;
+  updated.reserve(jobs.size());
+  const double max_err_sq = checks_.max_reprojection_px * checks_.max_reprojection_px;
+  std::vector<Pose3> job_poses;
+  std::vector<Eigen::Vector2d> job_uvs;
+  for (const Job& job : jobs) {
+    job_poses.assign(poses.begin() + job.begin, poses.begin() + job.end);
+    job_uvs.assign(uvs.begin() + job.begin, uvs.begin() + job.end);
+    const auto q = TriangulateDlt(options_.camera, job_poses, job_uvs);
+    if (!q) continue;
+    bool ok = true;
+    for (size_t k = 0; k < job_poses.size() && ok; ++k) {
+      ok = ReprojectionErrorSq(options_.camera, job_poses[k], *q, job_uvs[k]) <= max_err_sq;
+    }
+    if (ok) updated.emplace_back(job.id, *q);
+  }
   map_->Write([&](MapData& m) {
     for (const auto& [id, q] : updated) m.SetPointPosition(id, q);
   });
