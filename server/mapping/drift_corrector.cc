@@ -18,6 +18,10 @@ constexpr int kGiveUpRecentViews = 4;       // that many recent views and still 
 constexpr int kCovisibilityEdgesPerKf = 5;  // essential-graph edges per keyframe
 constexpr int kMinEdgeCovisibility = 50;
 constexpr double kLoopEdgeWeight = 1.0;
+// A disagreement above this fraction of the median depth is not drift accumulated over a loop
+// but a broken recent estimate (e.g. a keyframe posed in a world frame a correction has since
+// moved): correcting the old map by it would destroy it, so the check is deferred.
+constexpr double kMaxDriftError = 0.2;
 
 double Median(std::vector<double> v) {
   if (v.empty()) return 0.0;
@@ -72,6 +76,11 @@ DriftDecision DriftCorrector::Check(KeyframeId keyframe, const std::vector<Verte
   }
   last_error_ = Median(disagreement) / median_depth;
   if (last_error_ < options_.loop_min_error) return DriftDecision::kConsistent;
+  if (last_error_ > kMaxDriftError) {
+    M2S_LOG(kWarning) << "drift check at keyframe " << keyframe << ": error " << last_error_
+                      << " of median depth is implausible for drift; deferred";
+    return DriftDecision::kDeferred;
+  }
 
   // Old from new, trimmed of outliers (wrong ids, poorly triangulated points), then re-fitted.
   auto s = AlignPoints(new_positions, old_positions, /*with_scale=*/true);

@@ -68,13 +68,26 @@ void LocalMapper::InsertInitialMap(const InitialMap& initial, KeyframeId first, 
   stats_.points_created += static_cast<int64_t>(initial.point_ids.size());
 }
 
-void LocalMapper::Process(const KeyframeCandidate& c) {
+void LocalMapper::Process(const KeyframeCandidate& c, bool backlog) {
+  // A drift correction published after the tracker made this candidate moved the world: carry
+  // the pose over (as the tracker does for its own pose), or drop the candidate when more than
+  // one correction happened in between (only the latest is known).
+  Pose3 world_from_camera = c.world_from_camera;
+  const WorldCorrection correction = map_->correction();
+  if (correction.epoch != c.correction_epoch) {
+    if (correction.epoch != c.correction_epoch + 1) {
+      std::lock_guard<std::mutex> lock(stats_mutex_);
+      ++stats_.keyframes_dropped_stale;
+      return;
+    }
+    world_from_camera = correction.new_from_old.TransformPose(world_from_camera);
+  }
   map_->Write([&](MapData& m) {
     Keyframe kf;
     kf.id = c.id;
     kf.seq = c.seq;
     kf.timestamp = c.timestamp;
-    kf.world_from_camera = c.world_from_camera;
+    kf.world_from_camera = world_from_camera;
     kf.ids = c.features.ids;
     kf.uvs = c.features.uvs;
     m.AddKeyframe(std::move(kf));
@@ -105,8 +118,11 @@ void LocalMapper::Process(const KeyframeCandidate& c) {
     // A young map is refined as a whole: the low-parallax initial structure must not be
     // frozen into the keyframes that later windows hold fixed.
     GlobalBundleAdjust(/*max_iterations=*/10, options_.local_ba_max_points);
-  } else {
+  } else if (!backlog) {
     LocalBundleAdjust(c.id);
+  } else {
+    std::lock_guard<std::mutex> lock(stats_mutex_);
+    ++stats_.local_ba_deferred;
   }
   CullRecentPoints();
   CullKeyframes(c.id);

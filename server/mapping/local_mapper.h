@@ -32,6 +32,8 @@ struct MappingStats {
   int64_t keyframes_culled = 0;
   int64_t loop_corrections = 0;
   int64_t global_bundle_adjustments = 0;
+  int64_t keyframes_dropped_stale = 0;  // made before two or more drift corrections
+  int64_t local_ba_deferred = 0;        // local BAs left to the next keyframe (mapping backlog)
   double last_local_ba_ms = 0.0;
   double total_local_ba_ms = 0.0;
 };
@@ -42,8 +44,10 @@ class LocalMapper {
 
   // Writes the two initial keyframes and their points (ids reserved by the caller).
   void InsertInitialMap(const InitialMap& initial, KeyframeId first, KeyframeId second);
-  // Processes one keyframe: insert, drift check, triangulate, local BA, cull.
-  void Process(const KeyframeCandidate& candidate);
+  // Processes one keyframe: insert, drift check, triangulate, local BA, cull. With `backlog`
+  // (more keyframes are waiting) the local BA is left to the next keyframe, whose window covers
+  // this one: new points first, so that tracking keeps map points ahead of a fast camera.
+  void Process(const KeyframeCandidate& candidate, bool backlog = false);
   // Bundle adjustment of the whole map (first keyframe fixed); with max_points > 0 at most
   // that many points (evenly spread over ids) enter it and the others are re-triangulated.
   void GlobalBundleAdjust(int max_iterations, int max_points);

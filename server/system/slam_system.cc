@@ -60,7 +60,7 @@ void SlamSystem::StopMapping(bool discard_queued) {
 }
 
 void SlamSystem::MappingLoop() {
-  while (auto kf = keyframes_.Pop()) mapper_.Process(*kf);
+  while (auto kf = keyframes_.Pop()) mapper_.Process(*kf, /*backlog=*/keyframes_.size() > 0);
 }
 
 void SlamSystem::TrackingLoop() {

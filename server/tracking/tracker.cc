@@ -265,6 +265,7 @@ TrackerOutput Tracker::Track(int64_t seq, double timestamp, const SortedFeatures
   kf.seq = seq;
   kf.timestamp = timestamp;
   kf.world_from_camera = out.world_from_camera;
+  kf.correction_epoch = correction_epoch_;
   kf.features = features;
   std::vector<double> depths;
   for (size_t i = 0; i < a.ids.size(); ++i) {

@@ -29,6 +29,9 @@ struct KeyframeCandidate {
   SortedFeatures features;
   std::vector<VertexId> tracked_points;  // map points that were pose inliers
   std::vector<VertexId> dormant_points;  // map points re-observed after a long gap
+  // Map::correction().epoch the pose is expressed in (a drift correction published while the
+  // candidate waits in the mapping queue moves the world under it).
+  uint64_t correction_epoch = 0;
 };
 
 struct TrackerOutput {
