@@ -76,6 +76,12 @@ DriftDecision DriftCorrector::Check(KeyframeId keyframe, const std::vector<Verte
   }
   last_error_ = Median(disagreement) / median_depth;
   if (last_error_ < options_.loop_min_error) return DriftDecision::kConsistent;
+  // The keyframes right after a correction still settle (global BA); a second correction of
+  // the same loop from them overshoots, so corrections are at least loop_min_keyframe_gap apart.
+  if (last_correction_ &&
+      keyframe - *last_correction_ < static_cast<KeyframeId>(options_.loop_min_keyframe_gap)) {
+    return DriftDecision::kDeferred;
+  }
   if (last_error_ > kMaxDriftError) {
     M2S_LOG(kWarning) << "drift check at keyframe " << keyframe << ": error " << last_error_
                       << " of median depth is implausible for drift; deferred";
@@ -101,6 +107,7 @@ DriftDecision DriftCorrector::Check(KeyframeId keyframe, const std::vector<Verte
   for (size_t i = 0; i < src.size(); ++i) after.push_back(((*s) * src[i] - dst[i]).norm());
   if (Median(after) / median_depth > 0.5 * last_error_) return DriftDecision::kConsistent;
   Correct(keyframe, *s, newest_old);
+  last_correction_ = keyframe;
   return DriftDecision::kCorrected;
 }
 

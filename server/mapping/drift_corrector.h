@@ -15,6 +15,8 @@
 //   if (d == DriftDecision::kCorrected) mapper.GlobalBundleAdjust(...);
 #pragma once
 
+#include <optional>
+
 #include <vector>
 
 #include "m2s/slam/system.h"
@@ -42,6 +44,7 @@ class DriftCorrector {
   Options options_;
   Map* map_;
   double last_error_ = 0.0;
+  std::optional<KeyframeId> last_correction_;  // keyframe of the last correction
 };
 
 }  // namespace m2s::slam
