@@ -16,36 +16,9 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include "m2s/common/camera_io.h"
 #include "m2s/common/logging.h"
 #include "m2s/headless/headless_run.h"
-
-namespace {
-
-m2s::Expected<m2s::Camera> ReadCameraJson(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) return m2s::Expected<m2s::Camera>::Error("cannot open camera file " + path);
-  m2s::Camera camera;
-  try {
-    const nlohmann::json j = nlohmann::json::parse(in);
-    camera.width = j.at("width").get<int>();
-    camera.height = j.at("height").get<int>();
-    camera.fx = j.at("fx").get<double>();
-    camera.fy = j.at("fy").get<double>();
-    camera.cx = j.at("cx").get<double>();
-    camera.cy = j.at("cy").get<double>();
-    camera.near = j.value("near", camera.near);
-    camera.far = j.value("far", camera.far);
-  } catch (const nlohmann::json::exception& e) {
-    return m2s::Expected<m2s::Camera>::Error("bad camera file " + path + ": " + e.what());
-  }
-  std::string why;
-  if (!camera.Check(&why)) {
-    return m2s::Expected<m2s::Camera>::Error("bad camera file " + path + ": " + why);
-  }
-  return camera;
-}
-
-}  // namespace
 
 int main(int argc, char** argv) {
   m2s::headless::HeadlessOptions options;
@@ -85,7 +58,7 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
 
   if (!camera_json.empty()) {
-    auto camera = ReadCameraJson(camera_json);
+    auto camera = m2s::ReadCameraJson(camera_json);
     if (!camera) {
       std::cerr << "m2s_client: " << camera.error() << "\n";
       return 2;

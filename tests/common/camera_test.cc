@@ -1,9 +1,14 @@
 #include "m2s/common/camera.h"
 
+#include <filesystem>
+#include <fstream>
 #include <random>
+
+#include <unistd.h>
 
 #include <gtest/gtest.h>
 
+#include "m2s/common/camera_io.h"
 #include "m2s/common/geometry.h"
 
 namespace m2s {
@@ -99,6 +104,31 @@ TEST(CameraTest, CheckRejectsBadCameras) {
   c = Camera();
   c.near = 0;
   EXPECT_FALSE(c.Check(&why));
+}
+
+TEST(CameraIoTest, ReadsCameraJsonAndRejectsBadFiles) {
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("m2s_camera_io_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  std::ofstream(dir / "ok.json")
+      << R"({"width": 800, "height": 600, "fx": 500, "fy": 501, "cx": 400.5, "cy": 299.5,
+             "near": 0.1, "far": 20})";
+  const Expected<Camera> ok = ReadCameraJson((dir / "ok.json").string());
+  ASSERT_TRUE(ok.ok()) << ok.error();
+  EXPECT_EQ(ok->width, 800);
+  EXPECT_DOUBLE_EQ(ok->fy, 501.0);
+  EXPECT_DOUBLE_EQ(ok->cx, 400.5);
+  EXPECT_DOUBLE_EQ(ok->far, 20.0);
+  std::ofstream(dir / "missing_field.json") << R"({"width": 800, "height": 600})";
+  std::ofstream(dir / "garbage.json") << "not json";
+  std::ofstream(dir / "bad_range.json")
+      << R"({"width": 800, "height": 600, "fx": 500, "fy": 500, "cx": 1, "cy": 1, "near": 5, "far": 1})";
+  for (const char* name : {"missing_field.json", "garbage.json", "bad_range.json", "absent.json"}) {
+    const Expected<Camera> bad = ReadCameraJson((dir / name).string());
+    EXPECT_FALSE(bad.ok()) << name;
+    EXPECT_NE(bad.error().find(name), std::string::npos) << bad.error();
+  }
+  std::filesystem::remove_all(dir);
 }
 
 }  // namespace

@@ -17,6 +17,7 @@
 #include <nlohmann/json.hpp>
 
 #include "m2s/common/camera.h"
+#include "m2s/common/camera_io.h"
 #include "m2s/common/cpu_projector.h"
 #include "m2s/common/feature_noise.h"
 #include "m2s/common/scene.h"
@@ -44,29 +45,6 @@ struct Args {
   std::optional<uint64_t> frame_index;
   std::string out;
 };
-
-// Reads {"width","height","fx","fy","cx","cy","near","far"} (near and far optional).
-Expected<Camera> ReadCameraJson(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) return Expected<Camera>::Error("cannot open camera file " + path);
-  Camera camera;
-  try {
-    const nlohmann::json j = nlohmann::json::parse(in);
-    camera.width = j.at("width").get<int>();
-    camera.height = j.at("height").get<int>();
-    camera.fx = j.at("fx").get<double>();
-    camera.fy = j.at("fy").get<double>();
-    camera.cx = j.at("cx").get<double>();
-    camera.cy = j.at("cy").get<double>();
-    camera.near = j.value("near", camera.near);
-    camera.far = j.value("far", camera.far);
-  } catch (const nlohmann::json::exception& e) {
-    return Expected<Camera>::Error("bad camera file " + path + ": " + e.what());
-  }
-  std::string why;
-  if (!camera.Check(&why)) return Expected<Camera>::Error("bad camera file " + path + ": " + why);
-  return camera;
-}
 
 Expected<Camera> MakeCamera(const Args& args) {
   if (!args.camera_json.empty()) return ReadCameraJson(args.camera_json);
