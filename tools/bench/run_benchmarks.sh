@@ -3,7 +3,7 @@
 # paper's Table 2 on the default scene, real time with skipping, over LCM between two processes
 # (UDP multicast on the loopback of a private network namespace; plain loopback multicast when
 # namespaces are not permitted) and on-device; then bench_projection and bench_slam_accuracy
-# when built (short settings). Writes docs/results/h6.md.
+# when built (short settings). Writes docs/results/system_frame_rate_sweep.md.
 #
 #   tools/bench/run_benchmarks.sh [BUILD_DIR]     (BENCH_DURATION=S seconds per run, default 20)
 set -euo pipefail
@@ -88,5 +88,5 @@ mkdir -p "$root/docs/results"
   echo "they report at 15-120 fps; targets here: loopback latency p50 < 2 ms and p99 < 10 ms at"
   echo "120 fps, no skipped frames at 120 fps."
   cat "$extra"
-} >"$root/docs/results/h6.md"
-echo "bench: wrote $root/docs/results/h6.md" >&2
+} >"$root/docs/results/system_frame_rate_sweep.md"
+echo "bench: wrote $root/docs/results/system_frame_rate_sweep.md" >&2
