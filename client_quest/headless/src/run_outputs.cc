@@ -255,11 +255,11 @@ std::string SummaryLine(const RunMetrics& m, const std::string& out_dir) {
   std::ostringstream line;
   line << std::fixed << std::setprecision(3) << "frames " << m.frames_processed << "/"
        << m.frames_total << " processed (" << m.frames_skipped << " skipped, " << m.frames_lost
-       << " lost), ATE " << m.ate_rmse << " m, map error " << m.map_rmse << " m, " << m.keyframes
-       << " keyframes, " << m.map_points << " points, latency p50 " << std::setprecision(2)
-       << m.latency_ms_p50 << " ms p99 " << m.latency_ms_p99 << " ms, tracking p50 "
-       << m.tracking_ms_p50 << " ms, " << m.bytes_per_feature << " B/feature, " << m.projector
-       << " projector -> " << out_dir;
+       << " lost), ATE " << m.ate_rmse * 1e3 << " mm, map error " << m.map_rmse * 1e3 << " mm, "
+       << m.keyframes << " keyframes, " << m.map_points << " points, latency p50 "
+       << std::setprecision(2) << m.latency_ms_p50 << " ms p99 " << m.latency_ms_p99
+       << " ms, tracking p50 " << m.tracking_ms_p50 << " ms, " << m.bytes_per_feature
+       << " B/feature, " << m.projector << " projector -> " << out_dir;
   return line.str();
 }
 
