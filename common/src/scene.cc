@@ -194,4 +194,9 @@ Expected<Scene> LoadScene(const std::string& path, const SceneLoadOptions& optio
   return std::move(loader.builder).Build(fs_path.stem().string());
 }
 
+Expected<Scene> LoadSceneOrDefault(const std::string& path) {
+  if (path.empty()) return MakeDefaultScene();
+  return LoadScene(path);
+}
+
 }  // namespace m2s

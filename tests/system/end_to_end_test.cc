@@ -9,26 +9,15 @@
 #include "m2s/common/trajectory.h"
 #include "m2s/headless/headless_run.h"
 #include "m2s/replay/replay.h"
+#include "test_files.h"
 
 namespace m2s {
 namespace {
 
 namespace fs = std::filesystem;
 
-std::string ReadFile(const fs::path& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
-fs::path TempDir(const std::string& name) {
-  const fs::path dir =
-      fs::temp_directory_path() / ("m2s_e2e_" + name + "_" + std::to_string(getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
+std::string ReadFile(const fs::path& path) { return testing::ReadFile(path); }
+fs::path TempDir(const std::string& name) { return testing::TempDir("e2e", name); }
 
 headless::HeadlessOptions ShortRun(const fs::path& out) {
   headless::HeadlessOptions o;

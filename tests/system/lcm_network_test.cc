@@ -21,6 +21,7 @@
 #include "m2s/client/client_session.h"
 #include "m2s/headless/headless_run.h"
 #include "m2s/server_app/lcm_server.h"
+#include "test_files.h"
 
 namespace m2s {
 namespace {
@@ -45,20 +46,8 @@ const std::string& NetworkProblem() {
     GTEST_SKIP() << "skipped: network namespaces not permitted here (" << NetworkProblem() << ")"; \
   }
 
-std::string ReadFile(const fs::path& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
-fs::path TempDir(const std::string& name) {
-  const fs::path dir =
-      fs::temp_directory_path() / ("m2s_net_" + name + "_" + std::to_string(getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
+std::string ReadFile(const fs::path& path) { return testing::ReadFile(path); }
+fs::path TempDir(const std::string& name) { return testing::TempDir("net", name); }
 
 headless::HeadlessOptions ShortRun(const fs::path& out, bool on_device) {
   headless::HeadlessOptions o;

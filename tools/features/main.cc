@@ -128,14 +128,9 @@ Status Run(const Args& args) {
   if (!use_default && args.trajectory.empty())
     return Status::Error("--trajectory is required with --mesh");
 
-  Scene scene;
-  if (use_default) {
-    scene = MakeDefaultScene();
-  } else {
-    Expected<Scene> loaded = LoadScene(args.mesh);
-    if (!loaded) return loaded.status();
-    scene = std::move(*loaded);
-  }
+  Expected<Scene> loaded_scene = LoadSceneOrDefault(use_default ? std::string() : args.mesh);
+  if (!loaded_scene) return loaded_scene.status();
+  Scene scene = std::move(*loaded_scene);
   Trajectory trajectory;
   if (args.trajectory.empty()) {
     trajectory = DefaultTrajectory();

@@ -50,14 +50,9 @@ Expected<HeadlessResult> RunHeadless(const HeadlessOptions& options) {
   if (!options.noise.Check(&why)) return Status::Error("noise: " + why);
   if (!options.projector_options.Check(&why)) return Status::Error("projector: " + why);
 
-  Scene scene;
-  if (options.mesh_path.empty()) {
-    scene = MakeDefaultScene();
-  } else {
-    auto loaded = LoadScene(options.mesh_path);
-    if (!loaded) return loaded.status();
-    scene = std::move(*loaded);
-  }
+  auto loaded_scene = LoadSceneOrDefault(options.mesh_path);
+  if (!loaded_scene) return loaded_scene.status();
+  Scene scene = std::move(*loaded_scene);
   Trajectory trajectory;
   if (options.trajectory_path.empty()) {
     trajectory = DefaultTrajectory();

@@ -164,14 +164,9 @@ Expected<XrClientResult> RunXrClient(const XrClientOptions& options, XrPlatform*
   egl.context = static_cast<EGLContext>((*gl)->egl_context());
   egl.config = ConfigOf(egl.display, egl.context);
 
-  Scene scene;
-  if (options.mesh_path.empty()) {
-    scene = MakeDefaultScene();
-  } else {
-    auto loaded = LoadScene(options.mesh_path);
-    if (!loaded) return loaded.status();
-    scene = std::move(*loaded);
-  }
+  auto loaded_scene = LoadSceneOrDefault(options.mesh_path);
+  if (!loaded_scene) return loaded_scene.status();
+  Scene scene = std::move(*loaded_scene);
   auto kind = ParseProjectorKind(options.projector);
   if (!kind) return kind.status();
   auto projector = MakeProjector(*kind, scene, options.projector_options, gl->get());

@@ -144,14 +144,9 @@ Expected<ReplayResult> Replay(const ReplayOptions& options) {
     return Status::Error("log " + options.log_path + " holds no valid frame" +
                          (result.log_problem.empty() ? "" : " (" + result.log_problem + ")"));
   }
-  Scene scene;
-  if (options.mesh_path.empty()) {
-    scene = MakeDefaultScene();
-  } else {
-    auto loaded = LoadScene(options.mesh_path);
-    if (!loaded) return loaded.status();
-    scene = std::move(*loaded);
-  }
+  auto loaded_scene = LoadSceneOrDefault(options.mesh_path);
+  if (!loaded_scene) return loaded_scene.status();
+  Scene scene = std::move(*loaded_scene);
   headless::RunInfo info;
   info.projector = "replay";
   info.transport = "replay";

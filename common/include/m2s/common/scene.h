@@ -58,6 +58,10 @@ Expected<Scene> LoadScene(const std::string& path, const SceneLoadOptions& optio
 // World frame z up, floor at z = 0, room centred on the origin in x and y. Deterministic.
 Scene MakeDefaultScene();
 
+// The scene in `path`, or the default scene when `path` is empty (what the tools and apps do
+// with an optional --mesh flag).
+Expected<Scene> LoadSceneOrDefault(const std::string& path);
+
 // The floor plan of MakeDefaultScene(), for trajectory generators: the room box and the (x, y)
 // footprints of its furniture.
 struct RoomLayout {
