@@ -51,6 +51,9 @@ int main(int argc, char** argv) {
   double duration_s = 0;
   app.add_option("--duration", duration_s, "Only the first S seconds of the trajectory");
   app.add_option("--budget", options.noise.budget, "At most N features per frame, spread evenly");
+  app.add_option("--feature-budget", options.server.slam.feature_budget,
+                 "On-device SLAM uses at most N features a frame, chosen by id hash (0: all)")
+      ->capture_default_str();
   app.add_option("--record", options.record_log, "Also write the sent messages to this LCM log");
   app.add_option("--out", options.out_dir, "Output folder")->capture_default_str();
   app.add_flag(

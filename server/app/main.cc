@@ -1,11 +1,12 @@
 // m2s_server: the Mesh2SLAM SLAM server on LCM.
 //
 //   m2s_server [--lcm-url URL] [--config FILE] [--max-sessions N] [--session-timeout S]
-//              [--save-maps DIR] [--max-features N] [--stats-period S]
+//              [--save-maps DIR] [--max-features N] [--feature-budget N] [--stats-period S]
 //
 // --config reads a YAML/JSON file (cv::FileStorage) whose keys are the flag names with
-// underscores (max_sessions, session_timeout, max_features, stats_period, map_rate_hz,
-// queue_capacity, deterministic, num_ba_threads, max_keyframes, drift_correction); flags given
+// underscores (max_sessions, session_timeout, max_features, feature_budget, stats_period,
+// map_rate_hz, queue_capacity, deterministic, num_ba_threads, max_keyframes, drift_correction,
+// mapping_nice); flags given
 // on the command line win. SIGINT / SIGTERM stop the server cleanly.
 #include <csignal>
 #include <filesystem>
@@ -45,6 +46,7 @@ bool ReadConfig(const std::string& path, const CLI::App& app, m2s::server_app::L
   if (!given("--max-sessions")) read_int("max_sessions", &s.max_sessions);
   if (!given("--session-timeout")) read_double("session_timeout", &s.session_timeout_s);
   if (!given("--max-features")) read_int("max_features", &s.max_features);
+  if (!given("--feature-budget")) read_int("feature_budget", &s.slam.feature_budget);
   if (!given("--stats-period")) read_double("stats_period", &o->stats_period_s);
   if (!given("--lcm-url") && !fs["lcm_url"].empty()) {
     o->lcm_url = static_cast<std::string>(fs["lcm_url"]);
@@ -58,6 +60,7 @@ bool ReadConfig(const std::string& path, const CLI::App& app, m2s::server_app::L
   read_int("num_ba_threads", &s.slam.num_ba_threads);
   read_int("max_keyframes", &s.slam.max_keyframes);
   read_bool("drift_correction", &s.slam.drift_correction);
+  read_int("mapping_nice", &s.slam.mapping_nice);
   return true;
 }
 
@@ -75,6 +78,8 @@ int main(int argc, char** argv) {
   app.add_option("--save-maps", options.server.save_maps_dir,
                  "Save each session's map into this folder when it ends");
   app.add_option("--max-features", options.server.max_features, "Largest frame accepted");
+  app.add_option("--feature-budget", options.server.slam.feature_budget,
+                 "SLAM uses at most N features a frame, chosen by id hash (0: all)");
   app.add_option("--stats-period", options.stats_period_s, "Seconds between stats (0: never)");
   app.add_flag("--deterministic", options.server.slam.deterministic,
                "Run every session's SLAM deterministically");

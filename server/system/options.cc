@@ -27,6 +27,11 @@ bool Options::Check(std::string* why) const {
   };
   if (!camera.Check(why)) return false;
   if (max_features_per_frame <= 0) return fail("max_features_per_frame must be positive");
+  if (feature_budget < 0) return fail("feature_budget must be >= 0 (0: all features)");
+  if (feature_budget > 0 && feature_budget < init_min_points) {
+    return fail("feature_budget must be at least init_min_points");
+  }
+  if (mapping_nice < 0 || mapping_nice > 19) return fail("mapping_nice must be in [0, 19]");
   if (input_queue_capacity <= 0) return fail("input_queue_capacity must be positive");
   if (num_ba_threads <= 0) return fail("num_ba_threads must be positive");
   if (max_keyframes < 2) return fail("max_keyframes must be at least 2");

@@ -1,9 +1,14 @@
 #include "system/slam_system.h"
 
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <chrono>
 
 #include "m2s/common/logging.h"
+#include "tracking/feature_budget.h"
 
 namespace m2s::slam {
 namespace {
@@ -60,6 +65,13 @@ void SlamSystem::StopMapping(bool discard_queued) {
 }
 
 void SlamSystem::MappingLoop() {
+  if (options_.mapping_nice > 0) {
+    // Per-thread niceness (Linux): tracking, the latency-critical stage, wins the CPU.
+    const auto tid = static_cast<id_t>(syscall(SYS_gettid));
+    const int nice = getpriority(PRIO_PROCESS, tid) + options_.mapping_nice;
+    if (setpriority(PRIO_PROCESS, tid, std::min(nice, 19)) != 0)
+      M2S_LOG(kWarning) << "could not lower the mapping thread's priority";
+  }
   while (auto kf = keyframes_.Pop()) mapper_.Process(*kf, /*backlog=*/keyframes_.size() > 0);
 }
 
@@ -130,6 +142,10 @@ TrackResult SlamSystem::TrackLocked(const Frame& frame) {
     ++stats_.frames_rejected;
     ++stats_.rejected_by_reason[why];
     return result;
+  }
+  if (const size_t removed = ApplyFeatureBudget(options_.feature_budget, &features)) {
+    std::lock_guard<std::mutex> s(stats_mutex_);
+    stats_.features_over_budget += static_cast<int64_t>(removed);
   }
   if (!tracker_.started()) {
     if (localization_only_) {

@@ -148,7 +148,7 @@ struct HostileCounts {
   int server = 0;  // on M2S_FRAME and M2S_SESSION
   int client = 0;  // undecodable on M2S_POSE, M2S_MAP, M2S_STATS, M2S_SESSION
 };
-HostileCounts RunHostile(lcm::LCM* lcm, std::atomic<bool>* stop) {
+HostileCounts RunHostile(lcm::LCM* lcm, std::atomic<bool>* stop, std::atomic<int>* rounds_done) {
   HostileCounts counts;
   std::mt19937 rng(11);
   const char* channels[] = {wire::kFrameChannel, wire::kSessionChannel, wire::kPoseChannel,
@@ -200,6 +200,7 @@ HostileCounts RunHostile(lcm::LCM* lcm, std::atomic<bool>* stop) {
     publish(wire::kSessionChannel, wire::Encode(s), true, false);
     // A frame on the pose channel (wrong fingerprint there).
     publish(wire::kPoseChannel, wire::EncodeFeatureFrame(f), false, true);
+    rounds_done->fetch_add(1);
   }
   return counts;
 }
@@ -212,15 +213,27 @@ TEST(LcmNetworkTest, HostilePublisherIsCountedWhileARealClientKeepsTracking) {
   lcm::LCM hostile_lcm(kUrl);
   ASSERT_TRUE(hostile_lcm.good());
   std::atomic<bool> stop{false};
+  std::atomic<bool> session_up{false};
+  std::atomic<int> rounds_done{0};
   HostileCounts counts;
   headless::HeadlessOptions options = ShortRun(dir, false);
-  // The hostile publisher starts once the client's session is up and runs beside it.
+  // The hostile publisher starts once the client's session is up (its first frame sent); the
+  // client holds its 10th frame until a few hostile rounds went out, so they surely overlap
+  // however fast either side runs.
+  options.on_frame_sent = [&](int64_t k) {
+    session_up = true;
+    const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+    while (k == 10 && rounds_done.load() < 3 && std::chrono::steady_clock::now() < give_up)
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  };
   std::thread hostile([&] {
-    std::this_thread::sleep_for(std::chrono::milliseconds(300));
-    counts = RunHostile(&hostile_lcm, &stop);
+    while (!session_up.load()) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    counts = RunHostile(&hostile_lcm, &stop, &rounds_done);
   });
   auto result = headless::RunHeadless(options);
+  session_up = true;  // the hostile thread must not wait forever when the run failed early
   hostile.join();
+  EXPECT_GE(rounds_done.load(), 3);
   ASSERT_TRUE(result.ok()) << result.error();
   EXPECT_EQ(result->metrics.frames_processed, 20);
   EXPECT_GE(result->metrics.frames_tracked, 10);

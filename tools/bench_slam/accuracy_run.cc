@@ -16,6 +16,8 @@
 namespace m2s::bench {
 namespace {
 
+constexpr double kFarMapPointM = 0.05;
+
 using Clock = std::chrono::steady_clock;
 
 bool HasPose(slam::TrackingState state) {
@@ -101,6 +103,11 @@ void Evaluate(const Scene& scene, const Trajectory& ground_truth, slam::System& 
       for (double e : errors) sum += e * e;
       m->map_rmse_m = std::sqrt(sum / errors.size());
       m->map_median_m = Percentile(errors, 0.5);
+      m->map_p90_m = Percentile(errors, 0.9);
+      m->map_far_fraction =
+          static_cast<double>(std::count_if(errors.begin(), errors.end(),
+                                            [](double e) { return e > kFarMapPointM; })) /
+          static_cast<double>(errors.size());
     }
   }
   estimate.clear();
@@ -172,6 +179,7 @@ Expected<RunMetrics> RunAccuracy(const Scene& scene, const Sequence& sequence,
   slam::Options options;
   options.camera = camera;
   options.deterministic = !config.realtime;
+  if (config.feature_budget >= 0) options.feature_budget = config.feature_budget;
   Expected<std::unique_ptr<slam::System>> created = slam::System::Create(options);
   if (!created) return Status::Error(created.error());
   slam::System& system = **created;

@@ -16,10 +16,11 @@ namespace m2s::bench {
 
 struct RunConfig {
   double fps = 30.0;
-  bool noisy = false;     // 0.5 px Gaussian noise + 1% wrong ids
-  bool realtime = false;  // wall-clock pacing into Submit(), threaded mapping
-  int budget = 0;         // features kept per frame (0: every visible vertex)
-  int vertex_stride = 1;  // use only vertices with id % vertex_stride == 0
+  bool noisy = false;       // 0.5 px Gaussian noise + 1% wrong ids
+  bool realtime = false;    // wall-clock pacing into Submit(), threaded mapping
+  int budget = 0;           // features kept per frame (0: every visible vertex)
+  int feature_budget = -1;  // slam::Options::feature_budget (-1: the library's default)
+  int vertex_stride = 1;    // use only vertices with id % vertex_stride == 0
   double noise_px = 0.5;
   double wrong_id_fraction = 0.01;
   uint64_t noise_seed = 1;
@@ -48,8 +49,10 @@ struct RunMetrics {
   double ate_online_rmse_m = -1.0;  // poses as returned by Track(), Sim3 aligned
   double map_rmse_m = -1.0;         // map points vs true vertices, with the trajectory's alignment
   double map_median_m = -1.0;
-  double scale = 0.0;            // Sim3 scale world_true_from_estimate
-  double track_median_ms = 0.0;  // Track() wall time on non-keyframe frames
+  double map_p90_m = -1.0;
+  double map_far_fraction = -1.0;  // fraction of map points more than 5 cm off
+  double scale = 0.0;              // Sim3 scale world_true_from_estimate
+  double track_median_ms = 0.0;    // Track() wall time on non-keyframe frames
   double track_p90_ms = 0.0;
   double keyframe_median_ms = 0.0;  // Track() wall time on keyframe frames (deterministic:
                                     // includes the inline local mapping and local BA)

@@ -96,6 +96,7 @@ struct SystemStats {
   int64_t frames_tracked = 0;
   int64_t frames_dropped_queue = 0;  // dropped by the latest-wins input queue
   int64_t frames_rejected = 0;       // invalid frames (reasons counted below)
+  int64_t features_over_budget = 0;  // valid features left out by Options::feature_budget
   int64_t frames_lost = 0;
   int64_t relocalisations = 0;
   int64_t loop_corrections = 0;
@@ -110,6 +111,10 @@ struct Options {
   Camera camera;
   // Frames with more features than this are rejected (bounded work and memory).
   int max_features_per_frame = 200000;
+  // SLAM uses at most this many features of a frame: those whose vertex ids rank lowest under
+  // a fixed hash, so the subset is the same in every view and spread over the image (0: all).
+  // Tracking and mapping cost scale with it; accuracy barely does (docs/RESULTS.md).
+  int feature_budget = 2000;
   // Capacity of the latest-wins input queue used by Submit().
   int input_queue_capacity = 2;
   // Run mapping and drift correction inline (bit-identical results) instead of in threads.
@@ -120,6 +125,9 @@ struct Options {
   bool drift_correction = true;
   // Threads Ceres may use in local / global bundle adjustment.
   int num_ba_threads = 1;
+  // Niceness added to the mapping thread (Linux; 0 keeps the caller's): tracking is the
+  // latency-critical stage, mapping takes the CPU that tracking leaves.
+  int mapping_nice = 5;
   // Bound on the map (oldest redundant keyframes are culled beyond it).
   int max_keyframes = 2000;
 

@@ -1,0 +1,84 @@
+#include "tracking/feature_budget.h"
+
+#include <algorithm>
+#include <numeric>
+#include <set>
+
+#include <gtest/gtest.h>
+
+namespace m2s::slam {
+namespace {
+
+SortedFeatures MakeFeatures(std::vector<VertexId> ids) {
+  std::sort(ids.begin(), ids.end());
+  SortedFeatures f;
+  for (const VertexId id : ids) {
+    f.ids.push_back(id);
+    f.uvs.emplace_back(id % 640, id / 640 % 480);  // the uv travels with its id
+  }
+  return f;
+}
+
+// The reference: sort every id by rank, keep the first `budget`.
+std::set<VertexId> NaiveSelection(const std::vector<VertexId>& ids, size_t budget) {
+  std::vector<VertexId> by_rank = ids;
+  std::sort(by_rank.begin(), by_rank.end(),
+            [](VertexId a, VertexId b) { return FeatureRank(a) < FeatureRank(b); });
+  by_rank.resize(std::min(budget, by_rank.size()));
+  return {by_rank.begin(), by_rank.end()};
+}
+
+TEST(FeatureBudget, KeepsTheLowestRankedIdsInIdOrderWithTheirUvs) {
+  std::vector<VertexId> ids(5000);
+  std::iota(ids.begin(), ids.end(), 100);
+  SortedFeatures f = MakeFeatures(ids);
+  EXPECT_EQ(ApplyFeatureBudget(700, &f), 4300u);
+  ASSERT_EQ(f.size(), 700u);
+  ASSERT_EQ(f.uvs.size(), 700u);
+  EXPECT_TRUE(std::is_sorted(f.ids.begin(), f.ids.end()));
+  EXPECT_EQ(std::set<VertexId>(f.ids.begin(), f.ids.end()), NaiveSelection(ids, 700));
+  for (size_t i = 0; i < f.size(); ++i) {
+    EXPECT_EQ(f.uvs[i], Eigen::Vector2d(f.ids[i] % 640, f.ids[i] / 640 % 480));
+  }
+}
+
+TEST(FeatureBudget, UnderBudgetOrZeroKeepsEverything) {
+  SortedFeatures f = MakeFeatures({5, 9, 12});
+  EXPECT_EQ(ApplyFeatureBudget(3, &f), 0u);
+  EXPECT_EQ(ApplyFeatureBudget(0, &f), 0u);
+  EXPECT_EQ(f.ids, (std::vector<VertexId>{5, 9, 12}));
+}
+
+TEST(FeatureBudget, OverlappingViewsKeepTheSameIds) {
+  // Two views of one mesh sharing most vertices: an id kept in both views' intersection is
+  // kept whenever it ranks under both thresholds, so the kept sets overlap like the views.
+  std::vector<VertexId> a(20000), b;
+  std::iota(a.begin(), a.end(), 0);
+  for (VertexId id = 2000; id < 22000; ++id) b.push_back(id);  // 90 % shared
+  SortedFeatures fa = MakeFeatures(a), fb = MakeFeatures(b);
+  ApplyFeatureBudget(1000, &fa);
+  ApplyFeatureBudget(1000, &fb);
+  std::vector<VertexId> shared;
+  std::set_intersection(fa.ids.begin(), fa.ids.end(), fb.ids.begin(), fb.ids.end(),
+                        std::back_inserter(shared));
+  // Expected ~900 (the 90 % overlap); an order-dependent or random pick would give ~45.
+  EXPECT_GT(shared.size(), 800u);
+}
+
+TEST(FeatureBudget, SpreadsOverTheIdRange) {
+  // Mesh ids follow the vertex order (often spatial): the rank must not, or a budget would
+  // keep one corner of the scene.
+  std::vector<VertexId> ids(50000);
+  std::iota(ids.begin(), ids.end(), 0);
+  SortedFeatures f = MakeFeatures(ids);
+  ApplyFeatureBudget(1000, &f);
+  std::vector<int> per_decile(10, 0);
+  for (const VertexId id : f.ids) ++per_decile[id / 5000];
+  for (const int n : per_decile) {
+    EXPECT_GT(n, 60);  // 100 expected, binomial sd ~9.5
+    EXPECT_LT(n, 140);
+  }
+}
+
+}  // namespace
+}  // namespace m2s::slam
