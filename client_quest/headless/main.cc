@@ -51,14 +51,21 @@ int main(int argc, char** argv) {
   double duration_s = 0;
   app.add_option("--duration", duration_s, "Only the first S seconds of the trajectory");
   app.add_option("--budget", options.noise.budget, "At most N features per frame, spread evenly");
-  app.add_option("--feature-budget", options.server.slam.feature_budget,
-                 "On-device SLAM uses at most N features a frame, chosen by id hash (0: all)")
-      ->capture_default_str();
+  auto* feature_budget_opt =
+      app.add_option("--feature-budget", options.server.slam.feature_budget,
+                     "On-device SLAM uses at most N features a frame, chosen by id hash (0: all)")
+          ->capture_default_str();
+  auto* send_budget_opt =
+      app.add_option("--send-budget", options.send_budget,
+                     "Send at most N features a frame, the same id-hash choice (0: all; default: "
+                     "--feature-budget)");
   app.add_option("--record", options.record_log, "Also write the sent messages to this LCM log");
   app.add_option("--out", options.out_dir, "Output folder")->capture_default_str();
   app.add_flag(
       "--no-map-png", [&options](int64_t) { options.render_map = false; }, "Do not render map.png");
   CLI11_PARSE(app, argc, argv);
+  if (feature_budget_opt->count() > 0 && send_budget_opt->count() == 0)
+    options.send_budget = options.server.slam.feature_budget;
 
   if (!camera_json.empty()) {
     auto camera = m2s::ReadCameraJson(camera_json);

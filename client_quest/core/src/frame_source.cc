@@ -2,14 +2,17 @@
 
 #include <chrono>
 
+#include "m2s/common/feature_rank.h"
+
 namespace m2s::client {
 
 FrameSource::FrameSource(Projector* projector, const Camera& camera, FeatureNoiseOptions noise,
-                         uint32_t num_scene_vertices)
+                         uint32_t num_scene_vertices, int send_budget)
     : projector_(projector),
       camera_(camera),
       noise_(noise),
-      num_scene_vertices_(num_scene_vertices) {}
+      num_scene_vertices_(num_scene_vertices),
+      send_budget_(send_budget) {}
 
 Expected<wire::FeatureFrame> FrameSource::Make(const Pose3& world_from_camera,
                                                int64_t capture_time_us, uint64_t frame_index) {
@@ -30,6 +33,7 @@ Expected<wire::FeatureFrame> FrameSource::Make(const Pose3& world_from_camera,
     f.uv = {p.u, p.v};
     frame.features.push_back(f);
   }
+  KeepLowestRanked(send_budget_, &frame.features);
   last_projection_ms_ =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return frame;

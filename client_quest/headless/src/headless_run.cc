@@ -49,6 +49,7 @@ Expected<HeadlessResult> RunHeadless(const HeadlessOptions& options) {
   if (!options.camera.Check(&why)) return Status::Error("camera: " + why);
   if (!options.noise.Check(&why)) return Status::Error("noise: " + why);
   if (!options.projector_options.Check(&why)) return Status::Error("projector: " + why);
+  if (options.send_budget < 0) return Status::Error("send_budget must be >= 0 (0: all)");
 
   auto loaded_scene = LoadSceneOrDefault(options.mesh_path);
   if (!loaded_scene) return loaded_scene.status();
@@ -72,7 +73,7 @@ Expected<HeadlessResult> RunHeadless(const HeadlessOptions& options) {
   auto projector = CreateProjector(options, scene, &result.notice, &projector_name);
   if (!projector) return projector.status();
   client::FrameSource source(projector->get(), options.camera, options.noise,
-                             static_cast<uint32_t>(scene.num_vertices()));
+                             static_cast<uint32_t>(scene.num_vertices()), options.send_budget);
 
   std::unique_ptr<client::Transport> transport;
   if (options.on_device) {

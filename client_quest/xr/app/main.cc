@@ -90,6 +90,9 @@ int main(int argc, char** argv) {
   app.add_option("--budget", noise.budget, "most features per frame, spread on a grid (0: all)");
   app.add_option("--noise-px", noise.pixel_noise_sigma, "pixel noise sigma");
   app.add_option("--seed", noise.seed, "noise seed");
+  int send_budget = 0;
+  auto* send_budget_flag = app.add_option("--send-budget", send_budget,
+                                          "send at most N features a frame, by id rank (0: all)");
   on_device_flag->excludes(lcm_flag);
   CLI11_PARSE(app, argc, argv);
 
@@ -117,6 +120,7 @@ int main(int argc, char** argv) {
   if (*out_flag) options.out_dir = out;
   options.stdin_keys = keys;
   options.noise = noise;
+  if (*send_budget_flag) options.send_budget = send_budget;
   auto parsed = m2s::xr::ParseControlEvents(event_text);
   if (!parsed) {
     std::cerr << "m2s_xr_client: " << parsed.error() << "\n";

@@ -139,6 +139,10 @@ Expected<std::vector<ControlEvent>> ParseControlEvents(const std::string& text) 
 bool XrClientOptions::Check(std::string* why) const {
   if (!camera.Check(why)) return false;
   if (!projector_options.Check(why) || !noise.Check(why) || !server.Check(why)) return false;
+  if (send_budget < 0) {
+    *why = "send_budget must be >= 0 (0: all features)";
+    return false;
+  }
   if (max_frames < 0 || align_every_frames < 1 || !(final_pose_timeout_s >= 0)) {
     *why = "max_frames >= 0, align_every_frames >= 1 and final_pose_timeout_s >= 0 required";
     return false;
@@ -178,7 +182,7 @@ Expected<XrClientResult> RunXrClient(const XrClientOptions& options, XrPlatform*
   }
   if (!projector) return projector.status();
   client::FrameSource source(projector->get(), options.camera, options.noise,
-                             static_cast<uint32_t>(scene.num_vertices()));
+                             static_cast<uint32_t>(scene.num_vertices()), options.send_budget);
 
   MapRendererOptions render_options;
   render_options.mesh_style = options.draw_mesh ? MapRendererOptions::MeshStyle::kShaded

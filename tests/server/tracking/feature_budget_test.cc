@@ -6,6 +6,8 @@
 
 #include <gtest/gtest.h>
 
+#include "m2s/common/feature_rank.h"
+
 namespace m2s::slam {
 namespace {
 
@@ -40,6 +42,23 @@ TEST(FeatureBudget, KeepsTheLowestRankedIdsInIdOrderWithTheirUvs) {
   for (size_t i = 0; i < f.size(); ++i) {
     EXPECT_EQ(f.uvs[i], Eigen::Vector2d(f.ids[i] % 640, f.ids[i] / 640 % 480));
   }
+}
+
+TEST(FeatureBudget, ClientSideSelectionIsTheSameSubset) {
+  // A client that keeps the lowest-ranked features before sending (KeepLowestRanked on the
+  // unsorted wire features) sends exactly what the server's budget would keep.
+  std::vector<VertexFeature> wire;
+  for (VertexId id = 9000; id > 1000; id -= 3) wire.push_back({id, {1.f, 2.f}});
+  std::vector<VertexId> ids;
+  for (const VertexFeature& f : wire) ids.push_back(f.id);
+  SortedFeatures server = MakeFeatures(ids);
+  ApplyFeatureBudget(500, &server);
+  EXPECT_EQ(KeepLowestRanked(500, &wire), ids.size() - 500);
+  std::vector<VertexId> sent;
+  for (const VertexFeature& f : wire) sent.push_back(f.id);
+  EXPECT_TRUE(std::is_sorted(sent.rbegin(), sent.rend()));  // the client's order is kept
+  std::sort(sent.begin(), sent.end());
+  EXPECT_EQ(sent, server.ids);
 }
 
 TEST(FeatureBudget, UnderBudgetOrZeroKeepsEverything) {

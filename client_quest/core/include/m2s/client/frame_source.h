@@ -1,4 +1,5 @@
-// FrameSource: scene + camera pose -> projector -> optional feature noise -> a wire frame.
+// FrameSource: scene + camera pose -> projector -> optional feature noise -> optional send
+// budget (the lowest-ranked ids, m2s/common/feature_rank.h) -> a wire frame.
 //
 // The projector (CPU or GPU, common/projector.h) is borrowed and used from the calling thread
 // only. Deterministic: the noise is keyed by (seed, frame index).
@@ -20,8 +21,10 @@ namespace m2s::client {
 
 class FrameSource {
  public:
+  // send_budget: at most this many features per frame, the lowest-ranked ids (0: all). With
+  // the server's slam::Options::feature_budget or more, the server sees what it would keep.
   FrameSource(Projector* projector, const Camera& camera, FeatureNoiseOptions noise,
-              uint32_t num_scene_vertices);
+              uint32_t num_scene_vertices, int send_budget = 0);
 
   // The frame seen from world_from_camera; the ground truth is attached for evaluation.
   // session_id, seq and send_wall_us are left for the session to fill.
@@ -36,6 +39,7 @@ class FrameSource {
   const Camera camera_;
   const FeatureNoiseOptions noise_;
   const uint32_t num_scene_vertices_;
+  const int send_budget_;
   std::vector<ProjectedVertex> scratch_;
   double last_projection_ms_ = 0.0;
 };

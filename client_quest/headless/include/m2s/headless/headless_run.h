@@ -31,6 +31,9 @@ struct HeadlessOptions {
   std::string projector = "gpu";  // "gpu" (CPU fallback when EGL fails) or "cpu"
   ProjectorOptions projector_options;
   FeatureNoiseOptions noise;
+  // At most this many features a frame are sent, the lowest-ranked ids (0: all); by default
+  // the SLAM feature budget, so the server gets exactly the subset it would use.
+  int send_budget = slam::Options().feature_budget;
   std::string out_dir = "out";
   bool progress = false;  // a progress line on stderr
   bool render_map = true;

@@ -52,6 +52,8 @@ struct XrClientOptions {
   std::string projector = "gpu";  // "gpu" (CPU fallback when GLES 3.1 compute fails) or "cpu"
   ProjectorOptions projector_options;
   FeatureNoiseOptions noise;
+  // Features sent per frame: the lowest-ranked ids (0: all); default the SLAM feature budget.
+  int send_budget = slam::Options().feature_budget;
   server_app::ServerOptions server;  // the on-device server
   bool stage_space = false;          // world = STAGE instead of LOCAL
   bool overlay = true;               // draw map points, keyframes and poses at start
