@@ -108,6 +108,7 @@ void LocalMapper::Process(const KeyframeCandidate& c, bool backlog) {
     }
     corrected = decision == DriftDecision::kCorrected;
   }
+  ExtendPoints(c);
   TriangulateNewPoints(c.id);
   const size_t num_keyframes = map_->Read([](const MapData& m) { return m.keyframes().size(); });
   if (corrected) {
@@ -292,7 +293,27 @@ void LocalMapper::LocalBundleAdjust(KeyframeId kf_id) {
   RetriangulatePoints(rest);
 }
 
-void LocalMapper::RetriangulatePoints(const std::vector<VertexId>& ids) {
+void LocalMapper::ExtendPoints(const KeyframeCandidate& c) {
+  std::vector<VertexId> ids;
+  map_->Read([&](const MapData& m) {
+    const Keyframe* kf = m.keyframe(c.id);
+    if (kf == nullptr) return;
+    for (const VertexId id : kf->ids) {
+      const MapPoint* p = m.point(id);
+      if (p == nullptr || std::binary_search(p->observers.begin(), p->observers.end(), c.id))
+        continue;
+      ids.push_back(id);
+    }
+  });
+  std::vector<VertexId> dormant = c.dormant_points;
+  std::sort(dormant.begin(), dormant.end());
+  std::erase_if(
+      ids, [&](VertexId id) { return std::binary_search(dormant.begin(), dormant.end(), id); });
+  RetriangulatePoints(ids, c.id);
+}
+
+void LocalMapper::RetriangulatePoints(const std::vector<VertexId>& ids,
+                                      std::optional<KeyframeId> new_view) {
   if (ids.empty()) return;
   // Copy the observations under the map lock and triangulate outside it: tracking reads the
   // map on every frame and must not wait for thousands of triangulations.
@@ -307,10 +328,18 @@ void LocalMapper::RetriangulatePoints(const std::vector<VertexId>& ids) {
   jobs.reserve(ids.size());
   map_->Read([&](const MapData& m) {
     std::unordered_map<KeyframeId, Pose3> camera_from_world;
+    const Keyframe* view = new_view ? m.keyframe(*new_view) : nullptr;
+    if (new_view && view == nullptr) return;
     for (const VertexId id : ids) {
       const MapPoint* p = m.point(id);
       if (p == nullptr || p->observers.size() < 2) continue;
       const size_t begin = poses.size();
+      if (view != nullptr) {
+        const Eigen::Vector2d* uv = view->Find(id);
+        if (uv == nullptr) continue;
+        poses.push_back(view->world_from_camera.Inverse());
+        uvs.push_back(*uv);
+      }
       for (const KeyframeId o : p->observers) {
         const Keyframe* kf = m.keyframe(o);
         auto it = camera_from_world.find(o);
@@ -324,23 +353,26 @@ void LocalMapper::RetriangulatePoints(const std::vector<VertexId>& ids) {
   });
   std::vector<std::pair<VertexId, Eigen::Vector3d>> updated;
   updated.reserve(jobs.size());
-  const double max_err_sq = checks_.max_reprojection_px * checks_.max_reprojection_px;
   std::vector<Pose3> job_poses;
   std::vector<Eigen::Vector2d> job_uvs;
   for (const Job& job : jobs) {
     job_poses.assign(poses.begin() + job.begin, poses.begin() + job.end);
     job_uvs.assign(uvs.begin() + job.begin, uvs.begin() + job.end);
-    const auto q = TriangulateDlt(options_.camera, job_poses, job_uvs);
-    if (!q) continue;
-    bool ok = true;
-    for (size_t k = 0; k < job_poses.size() && ok; ++k) {
-      ok = ReprojectionErrorSq(options_.camera, job_poses[k], *q, job_uvs[k]) <= max_err_sq;
-    }
-    if (ok) updated.emplace_back(job.id, *q);
+    // Every check a new point passes (a DLT over near-parallel rays fits anywhere along them).
+    const auto q = TriangulateChecked(options_.camera, checks_, job_poses, job_uvs);
+    if (q) updated.emplace_back(job.id, *q);
   }
   map_->Write([&](MapData& m) {
-    for (const auto& [id, q] : updated) m.SetPointPosition(id, q);
+    for (const auto& [id, q] : updated) {
+      if (m.point(id) == nullptr) continue;  // culled meanwhile
+      m.SetPointPosition(id, q);
+      if (new_view && m.keyframe(*new_view) != nullptr) m.AddObservation(id, *new_view);
+    }
   });
+  if (new_view) {
+    std::lock_guard<std::mutex> lock(stats_mutex_);
+    stats_.points_extended += static_cast<int64_t>(updated.size());
+  }
 }
 
 void LocalMapper::ApplyBundleAdjustment(const BaProblem& problem,
@@ -359,10 +391,20 @@ void LocalMapper::ApplyBundleAdjustment(const BaProblem& problem,
       m.RemoveObservation(problem.points[obs.point_index].id,
                           problem.keyframes[obs.keyframe_index].id);
     }
+    std::vector<Eigen::Vector3d> centers;
     for (const BaPoint& p : problem.points) {
       const MapPoint* mp = m.point(p.id);
-      if (mp != nullptr && (mp->observers.size() < 2 || !p.position_world.allFinite()))
+      if (mp == nullptr) continue;
+      if (mp->observers.size() < 2 || !p.position_world.allFinite()) {
         m.RemovePoint(p.id);
+        continue;
+      }
+      // A point whose remaining rays are nearly parallel has no depth: BA can slide it
+      // anywhere along them within the noise.
+      centers.clear();
+      for (const KeyframeId o : mp->observers)
+        centers.push_back(m.keyframe(o)->world_from_camera.translation());
+      if (MaxParallaxDeg(mp->position, centers) < checks_.min_parallax_deg) m.RemovePoint(p.id);
     }
   });
 }

@@ -34,6 +34,7 @@ struct MappingStats {
   int64_t global_bundle_adjustments = 0;
   int64_t keyframes_dropped_stale = 0;  // made before two or more drift corrections
   int64_t local_ba_deferred = 0;        // local BAs left to the next keyframe (mapping backlog)
+  int64_t points_extended = 0;  // observations added by ExtendPoints (re-triangulated with them)
   double last_local_ba_ms = 0.0;
   double total_local_ba_ms = 0.0;
 };
@@ -59,8 +60,16 @@ class LocalMapper {
   void LocalBundleAdjust(KeyframeId kf_id);
   void CullKeyframes(KeyframeId kf_id);
   void CullRecentPoints();
-  // Multi-view DLT of points from all their observers (poses as they are now).
-  void RetriangulatePoints(const std::vector<VertexId>& ids);
+  // Multi-view DLT of points from all their observers (poses as they are now), with the
+  // triangulation checks; a point that fails keeps its position. With `new_view`, that
+  // keyframe's measurement of each point joins the DLT and, when all of them agree, becomes an
+  // observation: a point whose depth was poorly known (low parallax) and which tracking
+  // therefore rejected gets the wider baseline that fixes it.
+  void RetriangulatePoints(const std::vector<VertexId>& ids,
+                           std::optional<KeyframeId> new_view = std::nullopt);
+  // The new keyframe's measurements of mapped points it does not observe yet (except those
+  // left to the drift check), through RetriangulatePoints(ids, keyframe).
+  void ExtendPoints(const KeyframeCandidate& candidate);
   // Applies a solved BA problem: poses, positions, outlier observations, unsupported points.
   void ApplyBundleAdjustment(const BaProblem& problem, const BundleAdjustmentResult& result);
 

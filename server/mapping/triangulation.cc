@@ -1,5 +1,6 @@
 #include "mapping/triangulation.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -48,6 +49,15 @@ double ParallaxDeg(const Eigen::Vector3d& point, const Eigen::Vector3d& center_a
   return std::atan2(ra.cross(rb).norm(), ra.dot(rb)) * 180.0 / M_PI;
 }
 
+double MaxParallaxDeg(const Eigen::Vector3d& point, const std::vector<Eigen::Vector3d>& centers) {
+  double max_parallax = 0.0;
+  for (size_t i = 0; i < centers.size(); ++i) {
+    for (size_t j = i + 1; j < centers.size(); ++j)
+      max_parallax = std::max(max_parallax, ParallaxDeg(point, centers[i], centers[j]));
+  }
+  return max_parallax;
+}
+
 double ReprojectionErrorSq(const Camera& camera, const Pose3& camera_from_world,
                            const Eigen::Vector3d& point_world, const Eigen::Vector2d& uv) {
   const Eigen::Vector3d pc = camera_from_world * point_world;
@@ -62,19 +72,15 @@ std::optional<Eigen::Vector3d> TriangulateChecked(const Camera& camera,
   const auto point = TriangulateDlt(camera, camera_from_world, uv);
   if (!point) return std::nullopt;
   const double max_err_sq = checks.max_reprojection_px * checks.max_reprojection_px;
-  double max_parallax = 0.0;
   std::vector<Eigen::Vector3d> centers;
   centers.reserve(camera_from_world.size());
   for (size_t i = 0; i < camera_from_world.size(); ++i) {
     const Eigen::Vector3d pc = camera_from_world[i] * *point;
     if (!(pc.z() > checks.min_depth)) return std::nullopt;
     if ((camera.Project(pc) - uv[i]).squaredNorm() > max_err_sq) return std::nullopt;
-    const Eigen::Vector3d c = camera_from_world[i].Inverse().translation();
-    for (const auto& other : centers)
-      max_parallax = std::max(max_parallax, ParallaxDeg(*point, c, other));
-    centers.push_back(c);
+    centers.push_back(camera_from_world[i].Inverse().translation());
   }
-  if (max_parallax < checks.min_parallax_deg) return std::nullopt;
+  if (MaxParallaxDeg(*point, centers) < checks.min_parallax_deg) return std::nullopt;
   return point;
 }
 

@@ -38,6 +38,9 @@ std::optional<Eigen::Vector3d> TriangulateChecked(const Camera& camera,
 double ParallaxDeg(const Eigen::Vector3d& point, const Eigen::Vector3d& center_a,
                    const Eigen::Vector3d& center_b);
 
+// Largest parallax in degrees at `point` over every pair of camera centres (0 for < 2).
+double MaxParallaxDeg(const Eigen::Vector3d& point, const std::vector<Eigen::Vector3d>& centers);
+
 // Squared reprojection error in pixels; +inf when the point is behind the camera.
 double ReprojectionErrorSq(const Camera& camera, const Pose3& camera_from_world,
                            const Eigen::Vector3d& point_world, const Eigen::Vector2d& uv);
