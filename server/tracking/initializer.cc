@@ -19,6 +19,11 @@ constexpr double kHomographyRatio = 0.40;  // ORB-SLAM2: RH > 0.40 selects the h
 constexpr double kAmbiguityRatio = 0.75;   // second best motion must explain fewer points
 constexpr double kMinGoodFraction = 0.9;   // of the model's inliers
 constexpr int kMaxMatches = 1000;          // subsampled beyond this (RANSAC cost)
+constexpr int kMotionCheckPoints = 200;    // inliers that rank the candidate motions
+// After a refused attempt, retry when the parallax extrapolated linearly in time since the
+// reference reaches this fraction of the bound, and at least this often.
+constexpr double kRetryParallaxFraction = 0.8;
+constexpr double kMaxInitRetryDelayS = 0.1;
 
 struct Matches {
   std::vector<VertexId> ids;
@@ -129,11 +134,13 @@ MotionCheck CheckMotion(const Options& options, const Matches& m, const std::vec
 std::optional<TwoViewReconstruction> ReconstructTwoView(const Options& options,
                                                         const SortedFeatures& view0,
                                                         const SortedFeatures& view1,
-                                                        std::string* why) {
+                                                        std::string* why,
+                                                        double* median_parallax_deg) {
   auto fail = [why](const char* reason) -> std::optional<TwoViewReconstruction> {
     if (why) *why = reason;
     return std::nullopt;
   };
+  if (median_parallax_deg) *median_parallax_deg = 0.0;
   const Matches m = Intersect(view0, view1);
   const int n = static_cast<int>(m.ids.size());
   if (n < options.init_min_points) return fail("too few shared features");
@@ -206,10 +213,16 @@ std::optional<TwoViewReconstruction> ReconstructTwoView(const Options& options,
       cv::cv2eigen(t_cv, t);
       motions = {{r1, t}, {r1, -t}, {r2, t}, {r2, -t}};
     }
+    // The candidate motions are ranked on an even subset of the inliers (the triangulations
+    // are most of an attempt's cost); the best one is then checked on all of them.
+    std::vector<int> subset;
+    const double step = std::max(1.0, static_cast<double>(inliers.size()) / kMotionCheckPoints);
+    for (double k = 0; k < static_cast<double>(inliers.size()); k += step)
+      subset.push_back(inliers[static_cast<size_t>(k)]);
     std::vector<MotionCheck> checks;
     for (const auto& [r, t] : motions) {
       if (t.norm() < 1e-12) continue;
-      checks.push_back(CheckMotion(options, m, inliers, r, t.normalized()));
+      checks.push_back(CheckMotion(options, m, subset, r, t.normalized()));
     }
     if (checks.empty()) {
       *reason = "no translation between the views";
@@ -217,15 +230,21 @@ std::optional<TwoViewReconstruction> ReconstructTwoView(const Options& options,
     }
     std::sort(checks.begin(), checks.end(),
               [](const auto& a, const auto& b) { return a.good > b.good; });
+    if (median_parallax_deg)
+      *median_parallax_deg = std::max(*median_parallax_deg, checks[0].median_parallax_deg);
+    if (checks.size() > 1 && checks[1].good > kAmbiguityRatio * checks[0].good) {
+      *reason = "ambiguous motion (rotation only or too little parallax)";
+      return std::nullopt;
+    }
+    if (subset.size() < inliers.size()) {
+      checks[0] = CheckMotion(options, m, inliers, checks[0].camera1_from_camera0.RotationMatrix(),
+                              checks[0].camera1_from_camera0.translation());
+    }
     const int min_good =
         std::max(options.init_min_points,
                  static_cast<int>(kMinGoodFraction * static_cast<double>(inliers.size())));
     if (checks[0].good < min_good) {
       *reason = "too few points triangulate with the best motion";
-      return std::nullopt;
-    }
-    if (checks.size() > 1 && checks[1].good > kAmbiguityRatio * checks[0].good) {
-      *reason = "ambiguous motion (rotation only or too little parallax)";
       return std::nullopt;
     }
     if (checks[0].median_parallax_deg < options.init_min_parallax_deg) {
@@ -265,6 +284,7 @@ std::optional<InitialMap> Initializer::Process(int64_t seq, double timestamp,
   auto set_reference = [&]() {
     reference_ = InitialFrame{seq, timestamp, features, Pose3::Identity()};
     frames_since_reference_ = 0;
+    next_attempt_time_.reset();
   };
   if (!reference_ || features.size() < static_cast<size_t>(options_.init_min_points)) {
     if (features.size() >= static_cast<size_t>(options_.init_min_points)) set_reference();
@@ -272,10 +292,27 @@ std::optional<InitialMap> Initializer::Process(int64_t seq, double timestamp,
     return std::nullopt;
   }
   ++frames_since_reference_;
+  if (next_attempt_time_ && timestamp < *next_attempt_time_) {
+    last_failure_ = "too little parallax (waiting)";
+    if (frames_since_reference_ > options_.init_max_reference_age) set_reference();
+    return std::nullopt;
+  }
   std::string why;
-  auto two_view = ReconstructTwoView(options_, reference_->features, features, &why);
+  double parallax = 0.0;
+  auto two_view = ReconstructTwoView(options_, reference_->features, features, &why, &parallax);
   if (!two_view) {
     last_failure_ = why;
+    // Refusals that ran the RANSACs (the cheap gates say "too few shared features" and "too
+    // little image motion") mostly mean "not enough parallax yet": retry when it may be.
+    if (why != "too few shared features" && why != "too little image motion") {
+      const double elapsed = timestamp - reference_->timestamp;
+      double wait = kMaxInitRetryDelayS;
+      if (parallax > 0.0 && elapsed > 0.0) {
+        const double needed = kRetryParallaxFraction * options_.init_min_parallax_deg;
+        wait = std::clamp(elapsed * (needed / parallax - 1.0), 0.0, kMaxInitRetryDelayS);
+      }
+      next_attempt_time_ = timestamp + wait;
+    }
     M2S_LOG(kDebug) << "initialisation with frames " << reference_->seq << " and " << seq
                     << " refused: " << why;
     if (frames_since_reference_ > options_.init_max_reference_age ||

@@ -4,6 +4,9 @@
 // reprojection and parallax checks, a unique best motion required, then a full bundle
 // adjustment of the two views and the scale fixed by median depth 1 in the first camera.
 // Pure rotation or too little parallax: no map (keep waiting, never a broken map).
+// A refused attempt costs milliseconds (two RANSACs): after one, the next attempt waits until the
+// parallax, growing with the time since the reference frame, should be near the bound (at most
+// kMaxInitRetryDelayS later), so waiting frames stay cheap.
 //
 // Not thread-safe (one per tracking thread).
 //
@@ -29,11 +32,13 @@ struct TwoViewReconstruction {
 };
 
 // Two-view reconstruction from matched features (matched by id). nullopt, with the reason in
-// `why`, when the views cannot be reconstructed reliably.
+// `why`, when the views cannot be reconstructed reliably; `median_parallax_deg` (optional)
+// receives the parallax of the best motion when one was triangulated (else 0).
 std::optional<TwoViewReconstruction> ReconstructTwoView(const Options& options,
                                                         const SortedFeatures& view0,
                                                         const SortedFeatures& view1,
-                                                        std::string* why);
+                                                        std::string* why,
+                                                        double* median_parallax_deg = nullptr);
 
 struct InitialFrame {
   int64_t seq = 0;
@@ -57,7 +62,7 @@ class Initializer {
   // Feeds one valid frame. Returns the initial map once two frames (the reference and this
   // one) reconstruct; otherwise nullopt (last_failure() says why).
   std::optional<InitialMap> Process(int64_t seq, double timestamp, const SortedFeatures& features);
-  void Reset() { reference_.reset(), frames_since_reference_ = 0; }
+  void Reset() { reference_.reset(), frames_since_reference_ = 0, next_attempt_time_.reset(); }
   const std::string& last_failure() const { return last_failure_; }
   // The reference frame's seq, when one is held.
   std::optional<int64_t> reference_seq() const {
@@ -68,6 +73,7 @@ class Initializer {
   Options options_;
   std::optional<InitialFrame> reference_;
   int frames_since_reference_ = 0;
+  std::optional<double> next_attempt_time_;  // no full attempt before this capture time
   std::string last_failure_;
 };
 
