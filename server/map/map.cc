@@ -5,12 +5,12 @@
 namespace m2s::slam {
 
 KeyframeId Map::NextKeyframeId() {
-  std::lock_guard<std::mutex> lock(mutex_);
+  std::unique_lock<std::shared_mutex> lock(mutex_);
   return next_keyframe_id_++;
 }
 
 uint64_t Map::revision() const {
-  std::lock_guard<std::mutex> lock(mutex_);
+  std::shared_lock<std::shared_mutex> lock(mutex_);
   return revision_;
 }
 
@@ -51,7 +51,7 @@ MapDelta Map::MakeDeltaLocked(bool full) const {
 }
 
 MapDelta Map::TakeDelta() {
-  std::lock_guard<std::mutex> lock(mutex_);
+  std::unique_lock<std::shared_mutex> lock(mutex_);
   MapDelta delta;
   if (next_delta_full_) {
     delta = MakeDeltaLocked(/*full=*/true);
@@ -68,12 +68,12 @@ MapDelta Map::TakeDelta() {
 }
 
 MapDelta Map::FullDelta() const {
-  std::lock_guard<std::mutex> lock(mutex_);
+  std::shared_lock<std::shared_mutex> lock(mutex_);
   return MakeDeltaLocked(/*full=*/true);
 }
 
 void Map::Clear() {
-  std::lock_guard<std::mutex> lock(mutex_);
+  std::unique_lock<std::shared_mutex> lock(mutex_);
   data_.Clear();
   data_.ClearChanges();
   ++revision_;
@@ -81,13 +81,13 @@ void Map::Clear() {
 }
 
 void Map::PublishCorrection(const Sim3& new_from_old) {
-  std::lock_guard<std::mutex> lock(mutex_);
+  std::unique_lock<std::shared_mutex> lock(mutex_);
   ++correction_.epoch;
   correction_.new_from_old = new_from_old;
 }
 
 WorldCorrection Map::correction() const {
-  std::lock_guard<std::mutex> lock(mutex_);
+  std::shared_lock<std::shared_mutex> lock(mutex_);
   return correction_;
 }
 

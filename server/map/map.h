@@ -1,10 +1,11 @@
-// The SLAM map: MapData behind one mutex owned by this object, with revisions, coalesced map
-// deltas, drift-correction notices for the tracker, and Save/Load.
+// The SLAM map: MapData behind one reader-writer mutex owned by this object, with revisions,
+// coalesced map deltas, drift-correction notices for the tracker, and Save/Load.
 //
 // Contract: one writer at a time (the mapping stage, or the system while it initialises or
-// resets); any number of readers. Read()/Write() run a callable under the map's mutex: keep
-// it short (copy what you need, solve outside, write back). Every Write() that mutates bumps
-// the revision by one.
+// resets); any number of readers, concurrently (tracking reads the map on every frame while
+// mapping reads it to build its problems). Read() runs a callable under a shared lock, Write()
+// under the exclusive one: keep writes short (copy what you need, solve outside, write back).
+// Every Write() that mutates bumps the revision by one.
 //
 //   Map map;
 //   map.Write([&](MapData& m) { m.AddKeyframe(std::move(kf)); });
@@ -14,6 +15,7 @@
 
 #include <cstdint>
 #include <mutex>
+#include <shared_mutex>
 #include <string>
 #include <utility>
 
@@ -39,12 +41,12 @@ class Map {
 
   template <typename F>
   decltype(auto) Read(F&& f) const {
-    std::lock_guard<std::mutex> lock(mutex_);
+    std::shared_lock<std::shared_mutex> lock(mutex_);
     return f(static_cast<const MapData&>(data_));
   }
   template <typename F>
   decltype(auto) Write(F&& f) {
-    std::lock_guard<std::mutex> lock(mutex_);
+    std::unique_lock<std::shared_mutex> lock(mutex_);
     struct Bump {
       Map* map;
       uint64_t before;
@@ -79,7 +81,7 @@ class Map {
  private:
   MapDelta MakeDeltaLocked(bool full) const;
 
-  mutable std::mutex mutex_;
+  mutable std::shared_mutex mutex_;
   MapData data_;
   uint64_t revision_ = 0;
   uint64_t taken_revision_ = 0;

@@ -72,7 +72,7 @@ class Reader {
 Status Map::Save(const std::string& path, const Camera& camera) const {
   std::ofstream out(path, std::ios::binary | std::ios::trunc);
   if (!out) return Status::Error("cannot open map file for writing: " + path);
-  std::lock_guard<std::mutex> lock(mutex_);
+  std::shared_lock<std::shared_mutex> lock(mutex_);
   Writer w(&out);
   out.write(kMagic, sizeof(kMagic));
   w.Put(kVersion);
@@ -212,7 +212,7 @@ Status Map::Load(const std::string& path, const Camera& camera) {
   if (!in || std::memcmp(magic, kEndMagic, sizeof(kEndMagic)) != 0)
     return bad("missing end marker");
 
-  std::lock_guard<std::mutex> lock(mutex_);
+  std::unique_lock<std::shared_mutex> lock(mutex_);
   data.ClearChanges();
   data_ = std::move(data);
   ++revision_;

@@ -404,7 +404,7 @@ void LocalMapper::ApplyBundleAdjustment(const BaProblem& problem,
       centers.clear();
       for (const KeyframeId o : mp->observers)
         centers.push_back(m.keyframe(o)->world_from_camera.translation());
-      if (MaxParallaxDeg(mp->position, centers) < checks_.min_parallax_deg) m.RemovePoint(p.id);
+      if (!HasParallax(mp->position, centers, checks_.min_parallax_deg)) m.RemovePoint(p.id);
     }
   });
 }

@@ -58,6 +58,17 @@ double MaxParallaxDeg(const Eigen::Vector3d& point, const std::vector<Eigen::Vec
   return max_parallax;
 }
 
+bool HasParallax(const Eigen::Vector3d& point, const std::vector<Eigen::Vector3d>& centers,
+                 double min_deg) {
+  if (centers.size() < 2) return false;
+  double from_first = 0.0;
+  for (size_t i = 1; i < centers.size(); ++i)
+    from_first = std::max(from_first, ParallaxDeg(point, centers[0], centers[i]));
+  if (from_first >= min_deg) return true;
+  if (2.0 * from_first < min_deg) return false;
+  return MaxParallaxDeg(point, centers) >= min_deg;
+}
+
 double ReprojectionErrorSq(const Camera& camera, const Pose3& camera_from_world,
                            const Eigen::Vector3d& point_world, const Eigen::Vector2d& uv) {
   const Eigen::Vector3d pc = camera_from_world * point_world;
@@ -80,7 +91,7 @@ std::optional<Eigen::Vector3d> TriangulateChecked(const Camera& camera,
     if ((camera.Project(pc) - uv[i]).squaredNorm() > max_err_sq) return std::nullopt;
     centers.push_back(camera_from_world[i].Inverse().translation());
   }
-  if (MaxParallaxDeg(*point, centers) < checks.min_parallax_deg) return std::nullopt;
+  if (!HasParallax(*point, centers, checks.min_parallax_deg)) return std::nullopt;
   return point;
 }
 

@@ -39,7 +39,15 @@ double ParallaxDeg(const Eigen::Vector3d& point, const Eigen::Vector3d& center_a
                    const Eigen::Vector3d& center_b);
 
 // Largest parallax in degrees at `point` over every pair of camera centres (0 for < 2).
+// O(n^2): for a point's many observers use HasParallax.
 double MaxParallaxDeg(const Eigen::Vector3d& point, const std::vector<Eigen::Vector3d>& centers);
+
+// Whether some pair of centres sees `point` with at least `min_deg` of parallax, in O(n): the
+// largest angle from the first ray to any other is within a factor 2 of the largest pairwise
+// one (triangle inequality on the sphere); when it is between min/2 and min, the exact O(n^2)
+// answer decides.
+bool HasParallax(const Eigen::Vector3d& point, const std::vector<Eigen::Vector3d>& centers,
+                 double min_deg);
 
 // Squared reprojection error in pixels; +inf when the point is behind the camera.
 double ReprojectionErrorSq(const Camera& camera, const Pose3& camera_from_world,

@@ -1,5 +1,7 @@
 #include "mapping/triangulation.h"
 
+#include <random>
+
 #include <gtest/gtest.h>
 
 namespace m2s::slam {
@@ -26,6 +28,30 @@ TEST(Triangulation, RecoversAPointAndAppliesTheChecks) {
   off[1].y() += 5.0;  // off the epipolar line
   EXPECT_FALSE(TriangulateChecked(camera, TriangulationChecks(), poses, off).has_value());
   EXPECT_FALSE(TriangulateDlt(camera, {a}, {uv[0]}).has_value());
+}
+
+}  // namespace
+}  // namespace m2s::slam
+
+namespace m2s::slam {
+namespace {
+
+TEST(Triangulation, HasParallaxAgreesWithTheExhaustivePairwiseMaximum) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  int decided_by_bound = 0;
+  for (int trial = 0; trial < 2000; ++trial) {
+    const Eigen::Vector3d point(u(rng), u(rng), 3.0 + u(rng));
+    std::vector<Eigen::Vector3d> centers;
+    const int n = 2 + trial % 30;
+    const double spread = 0.002 * (1 + trial % 50);  // from far under to far over 1 degree
+    for (int i = 0; i < n; ++i) centers.emplace_back(spread * u(rng), spread * u(rng), 0.0);
+    const double reference = MaxParallaxDeg(point, centers);
+    EXPECT_EQ(HasParallax(point, centers, 1.0), reference >= 1.0) << "trial " << trial;
+    decided_by_bound += reference >= 0.5 && reference < 2.0 ? 0 : 1;
+  }
+  EXPECT_GT(decided_by_bound, 100);  // both quick exits were exercised
+  EXPECT_FALSE(HasParallax(Eigen::Vector3d(0, 0, 1), {Eigen::Vector3d::Zero()}, 1.0));
 }
 
 }  // namespace
