@@ -22,6 +22,15 @@ constexpr double kLoopEdgeWeight = 1.0;
 // but a broken recent estimate (e.g. a keyframe posed in a world frame a correction has since
 // moved): correcting the old map by it would destroy it, so the check is deferred.
 constexpr double kMaxDriftError = 0.2;
+// The old map agrees with the current keyframe when the old positions of the re-observed
+// points reproject within this many pixel sigmas (median; sqrt of the 2-dof chi-square 95 %
+// bound). 3-D disagreement alone is not evidence of drift: a point triangulated over a short
+// baseline has a depth error of tens of percent, in the old map and in the recent views alike,
+// while its reprojection from the views that measured it stays exact.
+constexpr double kConsistentReprojectionSigmas = 2.45;
+// A correction must bring the old points' median reprojection error in the current keyframe
+// down to this fraction of what it was.
+constexpr double kCorrectionReprojectionGain = 0.5;
 
 double Median(std::vector<double> v) {
   if (v.empty()) return 0.0;
@@ -34,6 +43,11 @@ double Median(std::vector<double> v) {
 DriftDecision DriftCorrector::Check(KeyframeId keyframe, const std::vector<VertexId>& dormant) {
   std::vector<Eigen::Vector3d> old_positions, new_positions;
   std::vector<double> depths;
+  // The old points as the current keyframe sees them: its pose, their stored positions and
+  // its measurements (for the reprojection gate and the check of a correction).
+  Pose3 kf_world_from_camera;
+  std::vector<Eigen::Vector3d> seen_old;
+  std::vector<Eigen::Vector2d> seen_uv;
   KeyframeId newest_old = 0;
   size_t max_recent_views = 0;
   TriangulationChecks checks;
@@ -43,10 +57,15 @@ DriftDecision DriftCorrector::Check(KeyframeId keyframe, const std::vector<Verte
     const Keyframe* kf = m.keyframe(keyframe);
     if (kf == nullptr) return;
     const Pose3 kf_from_world = kf->world_from_camera.Inverse();
+    kf_world_from_camera = kf->world_from_camera;
     for (const VertexId id : dormant) {
       const MapPoint* p = m.point(id);
       const std::vector<KeyframeId>* seen = m.KeyframesWithFeature(id);
       if (p == nullptr || seen == nullptr) continue;
+      if (const Eigen::Vector2d* uv = kf->Find(id)) {
+        seen_old.push_back(p->position);
+        seen_uv.push_back(*uv);
+      }
       const KeyframeId last = p->last_observer();
       std::vector<Pose3> poses;
       std::vector<Eigen::Vector2d> uvs;
@@ -65,6 +84,22 @@ DriftDecision DriftCorrector::Check(KeyframeId keyframe, const std::vector<Verte
       newest_old = std::max(newest_old, last);
     }
   });
+  // Median reprojection error of the old points in the current keyframe posed as `pose`.
+  auto median_reprojection = [&](const Pose3& world_from_camera) {
+    const Pose3 camera_from_world = world_from_camera.Inverse();
+    std::vector<double> e(seen_old.size());
+    for (size_t i = 0; i < seen_old.size(); ++i) {
+      e[i] = std::sqrt(
+          ReprojectionErrorSq(options_.camera, camera_from_world, seen_old[i], seen_uv[i]));
+    }
+    return Median(e);
+  };
+  const bool can_gate = static_cast<int>(seen_old.size()) >= options_.loop_min_points;
+  const double reprojection_before = can_gate ? median_reprojection(kf_world_from_camera) : 0.0;
+  if (can_gate && reprojection_before <= kConsistentReprojectionSigmas * options_.pixel_sigma) {
+    last_error_ = 0.0;
+    return DriftDecision::kConsistent;
+  }
   if (static_cast<int>(new_positions.size()) < options_.loop_min_points) {
     return max_recent_views >= static_cast<size_t>(kGiveUpRecentViews) ? DriftDecision::kConsistent
                                                                        : DriftDecision::kDeferred;
@@ -106,6 +141,19 @@ DriftDecision DriftCorrector::Check(KeyframeId keyframe, const std::vector<Verte
   std::vector<double> after;
   for (size_t i = 0; i < src.size(); ++i) after.push_back(((*s) * src[i] - dst[i]).norm());
   if (Median(after) / median_depth > 0.5 * last_error_) return DriftDecision::kConsistent;
+  // And it must explain what the current keyframe sees: the old points, reprojected into the
+  // keyframe moved by the correction, must agree far better than before. A Sim3 fitted to
+  // depth noise does not.
+  if (can_gate) {
+    const double reprojection_after = median_reprojection(s->TransformPose(kf_world_from_camera));
+    if (reprojection_after > kCorrectionReprojectionGain * reprojection_before) {
+      M2S_LOG(kInfo) << "drift check at keyframe " << keyframe << ": a correction of "
+                     << last_error_ << " of median depth would leave the old points at "
+                     << reprojection_after << " px (from " << reprojection_before
+                     << " px); not applied";
+      return DriftDecision::kConsistent;
+    }
+  }
   Correct(keyframe, *s, newest_old);
   last_correction_ = keyframe;
   return DriftDecision::kCorrected;

@@ -1,9 +1,13 @@
 // Drift correction. With global vertex ids, re-observing points mapped long ago is an exact
 // loop detection: no place recognition is needed. The question is only whether the old map and
-// the drifted current estimate agree. The corrector re-triangulates the re-observed ("dormant")
-// points from recent keyframes (the drifted frame), aligns them to their stored positions with
-// a Sim3 (Umeyama, with outlier trimming), and when they disagree by more than
-// Options::loop_min_error of the median depth it corrects the map: Sim3 pose graph over the
+// the drifted current estimate agree. First in the image: when the stored positions of the
+// re-observed ("dormant") points reproject into the current keyframe within the noise (median
+// under 2.45 sigma), they agree, whatever their 3-D disagreement (short-baseline points carry
+// depth errors of tens of percent, which are not drift). Otherwise the corrector re-triangulates
+// them from recent keyframes (the drifted frame), aligns them to their stored positions with a
+// Sim3 (Umeyama, with outlier trimming), and when they disagree by more than
+// Options::loop_min_error of the median depth, and the Sim3 at least halves the old points'
+// reprojection error in the current keyframe, it corrects the map: Sim3 pose graph over the
 // keyframes (sequential + covisibility edges from the current estimate, loop edges from the
 // alignment, old keyframes fixed), points moved with their reference keyframe, the correction
 // published for the tracker. The caller then adds the dormant observations and runs a global BA.

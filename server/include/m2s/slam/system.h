@@ -131,7 +131,7 @@ struct Options {
   // Bound on the map (oldest redundant keyframes are culled beyond it).
   int max_keyframes = 2000;
 
-  // ---- Thresholds (defaults tuned on the default scene; docs/results/h4.md) ----
+  // ---- Thresholds (defaults tuned on the default scene; docs/results/slam_core.md) ----
   // Assumed feature noise in pixels; scales every chi-square test.
   double pixel_sigma = 1.0;
   // Features may lie this far outside the image (noise) before the frame is rejected.
@@ -165,7 +165,7 @@ struct Options {
   double min_triangulation_parallax_deg = 1.0;
   // A keyframe is redundant when this fraction of its points is seen by >= 3 other keyframes
   // (1.0: only fully redundant ones; with exact association every keyframe adds constraints,
-  // and culling at ORB-SLAM2's 0.9 costs accuracy under noise: docs/results/h4.md).
+  // and culling at ORB-SLAM2's 0.9 costs accuracy under noise: docs/results/slam_core.md).
   double keyframe_redundancy = 1.0;
   // Drift correction: triggered when a keyframe re-observes at least loop_min_points points
   // unseen for loop_min_keyframe_gap keyframes, and their positions disagree with the
