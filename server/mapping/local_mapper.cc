@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <unordered_map>
 #include <unordered_set>
 
@@ -469,15 +470,31 @@ void LocalMapper::CullRecentPoints() {
 void LocalMapper::CullKeyframes(KeyframeId kf_id) {
   int culled = 0;
   map_->Write([&](MapData& m) {
-    if (m.keyframes().size() < 3) return;
+    // A young map is still refined as a whole and its scale still settles: a keyframe culled
+    // now would keep a rigid link measured before that (the frames tracked against it with it).
+    if (m.keyframes().size() <= static_cast<size_t>(kGlobalBaKeyframes)) return;
     const KeyframeId first = m.keyframes().begin()->first;
     auto remove = [&](KeyframeId id) {
       const Keyframe* kf = m.keyframe(id);
       std::optional<KeyframeLink> link;
-      for (const auto& [other, shared] : m.Covisible(id, 1)) {
-        link = KeyframeLink{other,
-                            m.keyframe(other)->world_from_camera.Inverse() * kf->world_from_camera};
-        break;
+      // The link is rigid: the nearest covisible keyframe keeps its lever arm, and so the
+      // error of a later change of scale around it, smallest.
+      double nearest = std::numeric_limits<double>::infinity();
+      for (const auto& [other, shared] : m.Covisible(id, kMinCovisiblePoints)) {
+        const Keyframe* o = m.keyframe(other);
+        const double d = (o->world_from_camera.translation() - kf->world_from_camera.translation())
+                             .squaredNorm();
+        if (d < nearest) {
+          nearest = d;
+          link = KeyframeLink{other, o->world_from_camera.Inverse() * kf->world_from_camera};
+        }
+      }
+      if (!link) {
+        for (const auto& [other, shared] : m.Covisible(id, 1)) {
+          link = KeyframeLink{
+              other, m.keyframe(other)->world_from_camera.Inverse() * kf->world_from_camera};
+          break;
+        }
       }
       if (!link) {
         // No covisible keyframe: link to the previous one by id.

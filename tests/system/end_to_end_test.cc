@@ -42,7 +42,7 @@ TEST(EndToEndTest, OnDeviceDefaultSceneTracksRecordsAndReplaysIdentically) {
   EXPECT_EQ(m.frames_total, 30);
   EXPECT_EQ(m.frames_processed, 30);
   EXPECT_EQ(m.frames_skipped, 0);
-  EXPECT_GE(m.frames_tracked, 20);
+  EXPECT_GE(m.frames_tracked, 15);  // initialisation needs 1.5 deg of parallax: ~1.2 s here
   EXPECT_GE(m.ate_rmse, 0.0);
   EXPECT_LT(m.ate_rmse, 0.05);  // metres, Sim3-aligned, on a 3 s walk through the room
   EXPECT_DOUBLE_EQ(m.bytes_per_feature, 8.0);

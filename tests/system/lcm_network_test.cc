@@ -236,7 +236,7 @@ TEST(LcmNetworkTest, HostilePublisherIsCountedWhileARealClientKeepsTracking) {
   EXPECT_GE(rounds_done.load(), 3);
   ASSERT_TRUE(result.ok()) << result.error();
   EXPECT_EQ(result->metrics.frames_processed, 20);
-  EXPECT_GE(result->metrics.frames_tracked, 10);
+  EXPECT_GE(result->metrics.frames_tracked, 8);  // after initialisation (~1.2 s of 2 s)
   EXPECT_LT(result->metrics.ate_rmse, 0.05);
   // Every bad message is accounted for (loopback delivery is reliable at this rate).
   server_app::ServerCounters c = server.Counters();

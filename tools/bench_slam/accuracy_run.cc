@@ -180,6 +180,8 @@ Expected<RunMetrics> RunAccuracy(const Scene& scene, const Sequence& sequence,
   options.camera = camera;
   options.deterministic = !config.realtime;
   if (config.feature_budget >= 0) options.feature_budget = config.feature_budget;
+  if (config.init_min_parallax_deg > 0)
+    options.init_min_parallax_deg = config.init_min_parallax_deg;
   Expected<std::unique_ptr<slam::System>> created = slam::System::Create(options);
   if (!created) return Status::Error(created.error());
   slam::System& system = **created;

@@ -92,6 +92,7 @@ int main(int argc, char** argv) {
   double duration_s = 0.0;
   int budget = 0;
   int feature_budget = -1;
+  double init_parallax_deg = -1.0;
   int vertex_stride = 1;
   double noise_px = 0.5;
   double wrong_ids = 0.01;
@@ -109,6 +110,9 @@ int main(int argc, char** argv) {
                  "slam::Options::feature_budget: features SLAM uses per frame, by id hash (0: "
                  "all; default: the library's)")
       ->check(CLI::Range(-1, 1 << 30));
+  app.add_option("--init-parallax-deg", init_parallax_deg,
+                 "slam::Options::init_min_parallax_deg (default: the library's)")
+      ->check(CLI::PositiveNumber);
   app.add_option("--vertex-stride", vertex_stride,
                  "use only vertices with id % stride == 0 (a consistent, sparser scene)")
       ->check(CLI::PositiveNumber);
@@ -159,6 +163,7 @@ int main(int argc, char** argv) {
         config.realtime = mode.rfind("realtime", 0) == 0;
         config.budget = budget;
         config.feature_budget = feature_budget;
+        config.init_min_parallax_deg = init_parallax_deg;
         config.vertex_stride = vertex_stride;
         config.noise_px = noise_px;
         if (!dump_dir.empty()) {

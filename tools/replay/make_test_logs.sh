@@ -7,7 +7,7 @@
 #
 # Logs (each under 1 MB: a feature budget keeps frames small):
 #   default_fast_10hz.lcmlog        --fast, 10 fps, 6 s of the default trajectory, 1500 features
-#   default_realtime_30hz.lcmlog    real time, 30 fps, 3 s, 800 features, 0.5 px noise, 1% wrong ids
+#   default_realtime_30hz.lcmlog    real time, 30 fps, 5 s, 600 features, 0.5 px noise, 1% wrong ids
 # Next to each log, <name>.trajectory.tum is the live run's estimate (for reference).
 set -euo pipefail
 root="$(cd "$(dirname "$0")/../.." && pwd)"
@@ -42,4 +42,4 @@ record() {  # name, client flags...
 }
 
 record default_fast_10hz --fast --fps 10 --duration 6 --budget 1500
-record default_realtime_30hz --fps 30 --duration 3 --budget 800 --noise-px 0.5 --outlier-ids 0.01 --seed 7
+record default_realtime_30hz --fps 30 --duration 5 --budget 600 --noise-px 0.5 --outlier-ids 0.01 --seed 7

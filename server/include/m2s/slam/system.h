@@ -137,9 +137,12 @@ struct Options {
   // Features may lie this far outside the image (noise) before the frame is rejected.
   double image_margin_px = 16.0;
   // Initialisation: shared features, median ray parallax, and the age (in frames) after which
-  // the reference frame is replaced.
+  // the reference frame is replaced. At 1 degree, 0.5 px of noise leaves the initial map's
+  // depths a few percent off, and the frames tracked on it before the first global BAs keep
+  // that (room-s2, 60 / 75 fps: ATE 5.6 / 6.2 mm at 1 degree, 1.5 / 1.2 mm at 1.5;
+  // docs/results/slam_realtime.md).
   int init_min_points = 60;
-  double init_min_parallax_deg = 1.0;
+  double init_min_parallax_deg = 1.5;
   int init_max_reference_age = 120;
   // Pose-only optimisation uses at most this many associated points (evenly spread over the
   // frame's ids; 0: all). Bounded tracking time on dense frames.
