@@ -56,16 +56,41 @@ DriftDecision DriftCorrector::Check(KeyframeId keyframe, const std::vector<Verte
   map_->Read([&](const MapData& m) {
     const Keyframe* kf = m.keyframe(keyframe);
     if (kf == nullptr) return;
-    const Pose3 kf_from_world = kf->world_from_camera.Inverse();
     kf_world_from_camera = kf->world_from_camera;
+    for (const VertexId id : dormant) {
+      const MapPoint* p = m.point(id);
+      const Eigen::Vector2d* uv = kf->Find(id);
+      if (p == nullptr || uv == nullptr) continue;
+      seen_old.push_back(p->position);
+      seen_uv.push_back(*uv);
+    }
+  });
+  // Median reprojection error of the old points in the current keyframe posed as `pose`.
+  auto median_reprojection = [&](const Pose3& world_from_camera) {
+    const Pose3 camera_from_world = world_from_camera.Inverse();
+    std::vector<double> e(seen_old.size());
+    for (size_t i = 0; i < seen_old.size(); ++i) {
+      e[i] = std::sqrt(
+          ReprojectionErrorSq(options_.camera, camera_from_world, seen_old[i], seen_uv[i]));
+    }
+    return Median(e);
+  };
+  // The image check first: when it settles the question, the re-triangulations below (the
+  // costly part) are not needed. Mapping is the map's only writer, so the two reads agree.
+  const bool can_gate = static_cast<int>(seen_old.size()) >= options_.loop_min_points;
+  const double reprojection_before = can_gate ? median_reprojection(kf_world_from_camera) : 0.0;
+  if (can_gate && reprojection_before <= kConsistentReprojectionSigmas * options_.pixel_sigma) {
+    last_error_ = 0.0;
+    return DriftDecision::kConsistent;
+  }
+  map_->Read([&](const MapData& m) {
+    const Keyframe* kf = m.keyframe(keyframe);
+    if (kf == nullptr) return;
+    const Pose3 kf_from_world = kf->world_from_camera.Inverse();
     for (const VertexId id : dormant) {
       const MapPoint* p = m.point(id);
       const std::vector<KeyframeId>* seen = m.KeyframesWithFeature(id);
       if (p == nullptr || seen == nullptr) continue;
-      if (const Eigen::Vector2d* uv = kf->Find(id)) {
-        seen_old.push_back(p->position);
-        seen_uv.push_back(*uv);
-      }
       const KeyframeId last = p->last_observer();
       std::vector<Pose3> poses;
       std::vector<Eigen::Vector2d> uvs;
@@ -84,22 +109,6 @@ DriftDecision DriftCorrector::Check(KeyframeId keyframe, const std::vector<Verte
       newest_old = std::max(newest_old, last);
     }
   });
-  // Median reprojection error of the old points in the current keyframe posed as `pose`.
-  auto median_reprojection = [&](const Pose3& world_from_camera) {
-    const Pose3 camera_from_world = world_from_camera.Inverse();
-    std::vector<double> e(seen_old.size());
-    for (size_t i = 0; i < seen_old.size(); ++i) {
-      e[i] = std::sqrt(
-          ReprojectionErrorSq(options_.camera, camera_from_world, seen_old[i], seen_uv[i]));
-    }
-    return Median(e);
-  };
-  const bool can_gate = static_cast<int>(seen_old.size()) >= options_.loop_min_points;
-  const double reprojection_before = can_gate ? median_reprojection(kf_world_from_camera) : 0.0;
-  if (can_gate && reprojection_before <= kConsistentReprojectionSigmas * options_.pixel_sigma) {
-    last_error_ = 0.0;
-    return DriftDecision::kConsistent;
-  }
   if (static_cast<int>(new_positions.size()) < options_.loop_min_points) {
     return max_recent_views >= static_cast<size_t>(kGiveUpRecentViews) ? DriftDecision::kConsistent
                                                                        : DriftDecision::kDeferred;

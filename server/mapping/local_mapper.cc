@@ -331,6 +331,7 @@ void LocalMapper::RetriangulatePoints(const std::vector<VertexId>& ids,
     std::unordered_map<KeyframeId, Pose3> camera_from_world;
     const Keyframe* view = new_view ? m.keyframe(*new_view) : nullptr;
     if (new_view && view == nullptr) return;
+    const Pose3 view_from_world = view != nullptr ? view->world_from_camera.Inverse() : Pose3();
     for (const VertexId id : ids) {
       const MapPoint* p = m.point(id);
       if (p == nullptr || p->observers.size() < 2) continue;
@@ -338,7 +339,7 @@ void LocalMapper::RetriangulatePoints(const std::vector<VertexId>& ids,
       if (view != nullptr) {
         const Eigen::Vector2d* uv = view->Find(id);
         if (uv == nullptr) continue;
-        poses.push_back(view->world_from_camera.Inverse());
+        poses.push_back(view_from_world);
         uvs.push_back(*uv);
       }
       for (const KeyframeId o : p->observers) {
@@ -479,8 +480,11 @@ void LocalMapper::CullKeyframes(KeyframeId kf_id) {
       std::optional<KeyframeLink> link;
       // The link is rigid: the nearest covisible keyframe keeps its lever arm, and so the
       // error of a later change of scale around it, smallest.
+      // Without a well-covisible one, the most covisible (Covisible sorts by shared points).
+      const auto covisible = m.Covisible(id, 1);
       double nearest = std::numeric_limits<double>::infinity();
-      for (const auto& [other, shared] : m.Covisible(id, kMinCovisiblePoints)) {
+      for (const auto& [other, shared] : covisible) {
+        if (shared < kMinCovisiblePoints) break;
         const Keyframe* o = m.keyframe(other);
         const double d = (o->world_from_camera.translation() - kf->world_from_camera.translation())
                              .squaredNorm();
@@ -489,12 +493,9 @@ void LocalMapper::CullKeyframes(KeyframeId kf_id) {
           link = KeyframeLink{other, o->world_from_camera.Inverse() * kf->world_from_camera};
         }
       }
-      if (!link) {
-        for (const auto& [other, shared] : m.Covisible(id, 1)) {
-          link = KeyframeLink{
-              other, m.keyframe(other)->world_from_camera.Inverse() * kf->world_from_camera};
-          break;
-        }
+      if (!link && !covisible.empty()) {
+        const Keyframe* o = m.keyframe(covisible.front().first);
+        link = KeyframeLink{o->id, o->world_from_camera.Inverse() * kf->world_from_camera};
       }
       if (!link) {
         // No covisible keyframe: link to the previous one by id.

@@ -20,6 +20,9 @@ constexpr double kAmbiguityRatio = 0.75;   // second best motion must explain fe
 constexpr double kMinGoodFraction = 0.9;   // of the model's inliers
 constexpr int kMaxMatches = 1000;          // subsampled beyond this (RANSAC cost)
 constexpr int kMotionCheckPoints = 200;    // inliers that rank the candidate motions
+// Refusals of the cheap gates, before any RANSAC (Process treats them apart).
+constexpr char kTooFewShared[] = "too few shared features";
+constexpr char kTooLittleMotion[] = "too little image motion";
 // After a refused attempt, retry when the parallax extrapolated linearly in time since the
 // reference reaches this fraction of the bound, and at least this often.
 constexpr double kRetryParallaxFraction = 0.8;
@@ -143,14 +146,14 @@ std::optional<TwoViewReconstruction> ReconstructTwoView(const Options& options,
   if (median_parallax_deg) *median_parallax_deg = 0.0;
   const Matches m = Intersect(view0, view1);
   const int n = static_cast<int>(m.ids.size());
-  if (n < options.init_min_points) return fail("too few shared features");
+  if (n < options.init_min_points) return fail(kTooFewShared);
   // Cheap gate: with less image motion than a fraction of the parallax bound there is no
   // chance of enough parallax (rotation can only add image motion, not parallax).
   std::vector<double> flow(n);
   for (int i = 0; i < n; ++i) flow[i] = cv::norm(m.p1[i] - m.p0[i]);
   std::nth_element(flow.begin(), flow.begin() + n / 2, flow.end());
   const double min_flow = 0.25 * options.camera.fx * options.init_min_parallax_deg * M_PI / 180.0;
-  if (flow[n / 2] < min_flow) return fail("too little image motion");
+  if (flow[n / 2] < min_flow) return fail(kTooLittleMotion);
 
   cv::Mat k_cv;
   cv::eigen2cv(options.camera.K(), k_cv);
@@ -302,9 +305,8 @@ std::optional<InitialMap> Initializer::Process(int64_t seq, double timestamp,
   auto two_view = ReconstructTwoView(options_, reference_->features, features, &why, &parallax);
   if (!two_view) {
     last_failure_ = why;
-    // Refusals that ran the RANSACs (the cheap gates say "too few shared features" and "too
-    // little image motion") mostly mean "not enough parallax yet": retry when it may be.
-    if (why != "too few shared features" && why != "too little image motion") {
+    // Refusals that ran the RANSACs mostly mean "not enough parallax yet": retry when it may be.
+    if (why != kTooFewShared && why != kTooLittleMotion) {
       const double elapsed = timestamp - reference_->timestamp;
       double wait = kMaxInitRetryDelayS;
       if (parallax > 0.0 && elapsed > 0.0) {
@@ -315,8 +317,7 @@ std::optional<InitialMap> Initializer::Process(int64_t seq, double timestamp,
     }
     M2S_LOG(kDebug) << "initialisation with frames " << reference_->seq << " and " << seq
                     << " refused: " << why;
-    if (frames_since_reference_ > options_.init_max_reference_age ||
-        why == "too few shared features") {
+    if (frames_since_reference_ > options_.init_max_reference_age || why == kTooFewShared) {
       set_reference();
     }
     return std::nullopt;
