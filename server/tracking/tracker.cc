@@ -13,6 +13,11 @@ namespace {
 
 constexpr int kMaxPnpPoints = 500;
 constexpr double kChi2TwoDof = 5.991;
+// Dormant points join tracking when the recent points' truncated cost at the joint pose exceeds
+// their own optimum by at most chi2(6 dof, 99.9 %) plus this much per recent inlier (map noise
+// in the recent points makes them fit their own pose a little better than the noise alone).
+constexpr double kAgreementChi2 = 22.46;
+constexpr double kAgreementPerPoint = 0.5;
 // Below this fraction of the reference keyframe's points, a keyframe is made even when mapping
 // is busy.
 constexpr double kCriticalTrackedRatio = 0.5;  // RANSAC input, subsampled evenly beyond this
@@ -86,8 +91,14 @@ void Tracker::Associate(const SortedFeatures& features, Association* a) const {
       if (const Keyframe* kf = m.keyframe(*reference_kf_)) {
         a->reference_pose = kf->world_from_camera;
         a->reference_points = kf->num_points;
+      } else if (auto resolved = m.ResolveKeyframePose(*reference_kf_)) {
+        a->reference_pose = resolved;  // culled: through its links
       } else {
-        a->reference_pose = m.ResolveKeyframePose(*reference_kf_);
+        // Still queued for mapping: the map will insert it at the pose it was made with (carried
+        // through any drift correction, as reference_world_from_camera_ is). Recording the frame
+        // against it lets the refined trajectory follow what mapping does to that keyframe; a
+        // keyframe that mapping drops leaves the frame at its tracked pose.
+        a->reference_pose = reference_world_from_camera_;
       }
     }
   });
@@ -95,36 +106,62 @@ void Tracker::Associate(const SortedFeatures& features, Association* a) const {
 
 bool Tracker::TrackWithModel(const Association& a, Pose3* camera_from_world,
                              std::vector<bool>* inlier) {
-  // Dormant points (mapped long ago) may carry the drift not yet corrected: track on the
-  // recent ones when there are enough, and let mapping close the loop.
+  const Pose3 prior = velocity_ * last_camera_from_world_;
+  // Solves from the motion prior on the associated points (dormant ones too or not),
+  // subsampled evenly beyond max_tracking_points.
+  auto solve = [&](bool skip_dormant, Pose3* pose) {
+    std::vector<Eigen::Vector3d> points;
+    std::vector<Eigen::Vector2d> uvs;
+    const int usable = static_cast<int>(a.ids.size()) - (skip_dormant ? a.num_dormant : 0);
+    const int cap = options_.max_tracking_points;
+    const double step = cap > 0 && usable > cap ? static_cast<double>(usable) / cap : 1.0;
+    points.reserve(static_cast<size_t>(usable));
+    uvs.reserve(static_cast<size_t>(usable));
+    double next = 0.0;
+    int k = -1;
+    for (size_t i = 0; i < a.ids.size(); ++i) {
+      if (skip_dormant && a.dormant[i]) continue;
+      if (++k < static_cast<int>(next)) continue;
+      next += step;
+      points.push_back(a.points[i]);
+      uvs.push_back(a.uvs[i]);
+    }
+    if (static_cast<int>(points.size()) < options_.min_tracked_points) return false;
+    *pose = prior;
+    const PoseOnlyResult r =
+        OptimizePose(options_.camera, MakePoseOptions(options_), points, uvs, pose);
+    return pose->AllFinite() && r.num_inliers >= options_.min_tracked_points;
+  };
+  // Dormant points (mapped long ago) may carry drift not yet corrected. They are left out
+  // only when they disagree with the recent ones: the recent points alone can be few and
+  // freshly triangulated, and a pose solved on them alone is then worse than one on all.
   const int num_active = static_cast<int>(a.ids.size()) - a.num_dormant;
-  const bool skip_dormant = a.num_dormant > 0 && num_active >= 2 * options_.min_tracked_points;
-  std::vector<Eigen::Vector3d> points;
-  std::vector<Eigen::Vector2d> uvs;
-  std::vector<int> index;
-  points.reserve(a.ids.size());
-  uvs.reserve(a.ids.size());
-  index.reserve(a.ids.size());
-  const int usable = skip_dormant ? num_active : static_cast<int>(a.ids.size());
-  const int cap = options_.max_tracking_points;
-  const double step = cap > 0 && usable > cap ? static_cast<double>(usable) / cap : 1.0;
-  double next = 0.0;
-  int k = -1;
-  for (size_t i = 0; i < a.ids.size(); ++i) {
-    if (skip_dormant && a.dormant[i]) continue;
-    if (++k < static_cast<int>(next)) continue;
-    next += step;
-    points.push_back(a.points[i]);
-    uvs.push_back(a.uvs[i]);
-    index.push_back(static_cast<int>(i));
+  if (a.num_dormant > 0 && num_active >= 2 * options_.min_tracked_points) {
+    Pose3 active_pose, joint_pose;
+    const bool active_ok = solve(/*skip_dormant=*/true, &active_pose);
+    const bool joint_ok = solve(/*skip_dormant=*/false, &joint_pose);
+    // Agreement, a likelihood-ratio test on the recent points: moving from their own optimum
+    // to the joint one raises their (chi-square truncated) cost by about chi2(6) when the old
+    // points agree, by far more when the old ones have drifted.
+    int active_inliers = 0;
+    const double active_cost = active_ok ? RecentPointsCost(a, active_pose, &active_inliers) : 0.0;
+    int unused = 0;
+    const double joint_cost = joint_ok ? RecentPointsCost(a, joint_pose, &unused) : 0.0;
+    const bool agree =
+        joint_ok && (!active_ok || joint_cost - active_cost <=
+                                       kAgreementChi2 + kAgreementPerPoint * active_inliers);
+    if (agree) {
+      *camera_from_world = joint_pose;
+      return Classify(a, joint_pose, false, inlier) >= options_.min_tracked_points;
+    }
+    if (!active_ok) return false;
+    *camera_from_world = active_pose;
+    return Classify(a, active_pose, true, inlier) >= options_.min_tracked_points;
   }
-  if (static_cast<int>(points.size()) < options_.min_tracked_points) return false;
-  Pose3 pose = velocity_ * last_camera_from_world_;
-  const PoseOnlyResult r =
-      OptimizePose(options_.camera, MakePoseOptions(options_), points, uvs, &pose);
-  if (!pose.AllFinite() || r.num_inliers < options_.min_tracked_points) return false;
+  Pose3 pose;
+  if (!solve(/*skip_dormant=*/false, &pose)) return false;
   *camera_from_world = pose;
-  return Classify(a, pose, skip_dormant, inlier) >= options_.min_tracked_points;
+  return Classify(a, pose, false, inlier) >= options_.min_tracked_points;
 }
 
 bool Tracker::Relocalise(const Association& a, Pose3* camera_from_world,
@@ -182,6 +219,23 @@ int Tracker::Classify(const Association& a, const Pose3& camera_from_world, bool
     }
   }
   return n;
+}
+
+double Tracker::RecentPointsCost(const Association& a, const Pose3& camera_from_world,
+                                 int* num_inliers) const {
+  const double inv_var = 1.0 / (options_.pixel_sigma * options_.pixel_sigma);
+  double cost = 0.0;
+  *num_inliers = 0;
+  for (size_t i = 0; i < a.ids.size(); ++i) {
+    if (a.dormant[i]) continue;
+    const Eigen::Vector3d pc = camera_from_world * a.points[i];
+    double s = kChi2TwoDof;
+    if (pc.z() > 0.0)
+      s = std::min(s, (options_.camera.Project(pc) - a.uvs[i]).squaredNorm() * inv_var);
+    if (s < kChi2TwoDof) ++*num_inliers;
+    cost += s;
+  }
+  return cost;
 }
 
 bool Tracker::NeedKeyframe(const Association& a, int num_inliers, const Pose3& world_from_camera,

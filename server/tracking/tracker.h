@@ -80,6 +80,10 @@ class Tracker {
   // Marks the points reprojecting within the chi-square bound; returns their number.
   int Classify(const Association& a, const Pose3& camera_from_world, bool skip_dormant,
                std::vector<bool>* inlier) const;
+  // Sum over the recent (not dormant) points of the squared reprojection error in units of
+  // pixel_sigma^2, each capped at the 2-dof chi-square bound; counts those under it.
+  double RecentPointsCost(const Association& a, const Pose3& camera_from_world,
+                          int* num_inliers) const;
   bool NeedKeyframe(const Association& a, int num_inliers, const Pose3& world_from_camera,
                     double timestamp, bool loop_candidate) const;
 

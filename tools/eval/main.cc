@@ -1,9 +1,11 @@
 // m2s_eval GT.tum EST.tum [--align sim3|se3|none] [--max-dt S] [--offset S] [--greedy] [--json]
+//          [--save-errors FILE]
 //
 // Trajectory accuracy with the definitions of evo (see common/evaluation.h): with the defaults
 // the ATE equals `evo_ape tum GT EST -as` and the RPE `evo_rpe tum GT EST -as`. Prints a table,
 // or one JSON object with --json. Bad input: one line on stderr and exit code 1.
 #include <cstdio>
+#include <fstream>
 #include <iostream>
 #include <string>
 
@@ -29,7 +31,7 @@ void PrintRow(const char* name, const m2s::ErrorStats& s) {
 
 int main(int argc, char** argv) {
   CLI::App app{"Trajectory accuracy (ATE, RPE) of an estimate against ground truth, as evo."};
-  std::string gt_path, est_path, align_name = "sim3";
+  std::string gt_path, est_path, align_name = "sim3", errors_path;
   double max_dt = 0.01, offset = 0.0;
   bool json = false, greedy = false;
   app.add_option("GT", gt_path, "ground-truth trajectory (TUM format)")->required();
@@ -43,6 +45,9 @@ int main(int argc, char** argv) {
   app.add_flag("--greedy", greedy,
                "TUM associate.py matching (each pose used once) instead of evo's");
   app.add_flag("--json", json, "print one JSON object");
+  app.add_option("--save-errors", errors_path,
+                 "write one line per matched pose: estimate timestamp, ATE error [m] after "
+                 "alignment (to find where a trajectory goes wrong)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -72,6 +77,15 @@ int main(int argc, char** argv) {
   const m2s::Expected<m2s::TrajectoryEvaluation> result =
       m2s::EvaluateTrajectory(*gt, *est, options);
   if (!result) return fail(result.error());
+  if (!errors_path.empty()) {
+    std::ofstream out(errors_path);
+    if (!out) return fail("cannot write " + errors_path);
+    out.precision(17);
+    out << "# timestamp ate_error_m\n";
+    for (size_t i = 0; i < result->matches.size(); ++i)
+      out << (*est)[result->matches[i].estimate].timestamp << " " << result->ate_errors[i] << "\n";
+    if (!out) return fail("cannot write " + errors_path);
+  }
 
   if (json) {
     const nlohmann::json out = {{"ate_rmse", result->ate.rmse},

@@ -138,7 +138,9 @@ TEST(DriftCorrection, LoopClosureShrinksTheTrajectoryError) {
   map.Read([&](const MapData& m) {
     for (const VertexId v : c.dormant_points) {
       const MapPoint* p = m.point(v);
-      if (p != nullptr) EXPECT_EQ(p->last_observer(), c.id);
+      if (p != nullptr) {
+        EXPECT_EQ(p->last_observer(), c.id);
+      }
     }
   });
 }

@@ -1,0 +1,214 @@
+// Tracker: which map points a pose is solved on when points mapped long ago ("dormant") are
+// re-observed, and which keyframe a frame is recorded against while its reference keyframe
+// still waits for mapping. References: the true pose of a synthetic frame, and poses solved
+// directly with OptimizePose on chosen point subsets.
+#include "tracking/tracker.h"
+
+#include <random>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "optimization/problems.h"
+
+namespace m2s::slam {
+namespace {
+
+constexpr KeyframeId kOldKeyframe = 0;
+constexpr KeyframeId kReferenceKeyframe = 40;  // > loop_min_keyframe_gap after kOldKeyframe
+constexpr VertexId kFirstOldId = 100000;
+
+struct Scene {
+  std::vector<VertexId> ids;
+  std::vector<Eigen::Vector3d> true_points;  // world
+  std::vector<bool> old;                     // observed only by kOldKeyframe (dormant)
+};
+
+// A point in front of the identity camera, projecting inside [u0, u1] x [v0, v1].
+Eigen::Vector3d PointInPatch(const Camera& camera, std::mt19937* rng, double u0, double u1,
+                             double v0, double v1) {
+  std::uniform_real_distribution<double> u(u0, u1), v(v0, v1), depth(1.5, 3.0);
+  return camera.Unproject({u(*rng), v(*rng)}, depth(*rng));
+}
+
+Options TrackerOptions() {
+  Options options;
+  options.camera = Camera::FromHorizontalFov(640, 480, 90.0);
+  options.pixel_sigma = 0.5;
+  return options;
+}
+
+// Inserts the scene into the map: old points observed by kOldKeyframe, recent ones by the
+// reference keyframe (both at the identity pose), each at `mapped(i)`.
+template <typename Mapped>
+void InsertScene(const Scene& scene, const Camera& camera, Mapped mapped, Map* map) {
+  while (map->NextKeyframeId() < kReferenceKeyframe) {
+  }  // reserved: the tracker's own keyframes get later ids
+  map->Write([&](MapData& m) {
+    for (const KeyframeId kf_id : {kOldKeyframe, kReferenceKeyframe}) {
+      Keyframe kf;
+      kf.id = kf_id;
+      for (size_t i = 0; i < scene.ids.size(); ++i) {
+        if (scene.old[i] != (kf_id == kOldKeyframe)) continue;
+        kf.ids.push_back(scene.ids[i]);
+        kf.uvs.push_back(camera.Project(scene.true_points[i]));
+      }
+      m.AddKeyframe(std::move(kf));
+    }
+    for (size_t i = 0; i < scene.ids.size(); ++i) {
+      const KeyframeId observer = scene.old[i] ? kOldKeyframe : kReferenceKeyframe;
+      m.AddPoint(scene.ids[i], mapped(i), observer);
+      m.AddObservation(scene.ids[i], observer);
+    }
+  });
+}
+
+// The frame seen from `world_from_camera` with Gaussian pixel noise (sorted by id).
+SortedFeatures Observe(const Scene& scene, const Camera& camera, const Pose3& world_from_camera,
+                       double noise_px, std::mt19937* rng) {
+  std::normal_distribution<double> noise(0.0, noise_px);
+  const Pose3 camera_from_world = world_from_camera.Inverse();
+  SortedFeatures f;
+  for (size_t i = 0; i < scene.ids.size(); ++i) {
+    f.ids.push_back(scene.ids[i]);
+    f.uvs.push_back(camera.Project(camera_from_world * scene.true_points[i]) +
+                    Eigen::Vector2d(noise(*rng), noise(*rng)));
+  }
+  return f;
+}
+
+double PositionError(const Pose3& a, const Pose3& b) {
+  return (a.translation() - b.translation()).norm();
+}
+
+// OptimizePose from the identity on the chosen points of the frame.
+Pose3 SolveOn(const Options& options, const Scene& scene,
+              const std::vector<Eigen::Vector3d>& mapped, const SortedFeatures& frame, bool use_old,
+              bool use_recent) {
+  std::vector<Eigen::Vector3d> points;
+  std::vector<Eigen::Vector2d> uvs;
+  for (size_t i = 0; i < scene.ids.size(); ++i) {
+    if (scene.old[i] ? !use_old : !use_recent) continue;
+    points.push_back(mapped[i]);
+    uvs.push_back(frame.uvs[i]);
+  }
+  PoseOnlyOptions po;
+  po.pixel_sigma = options.pixel_sigma;
+  po.huber_delta_px = std::sqrt(5.991) * options.pixel_sigma;
+  Pose3 camera_from_world;
+  OptimizePose(options.camera, po, points, uvs, &camera_from_world);
+  return camera_from_world.Inverse();
+}
+
+TEST(Tracker, ConsistentDormantPointsJoinThePose) {
+  // The recent points crowd one corner of the image (the camera turns into a new area), where
+  // rotation and translation are hard to tell apart; the old points cover the whole image and
+  // agree with them. Solving on the recent points alone (what tracking did before) is far off.
+  const Options options = TrackerOptions();
+  std::mt19937 rng(7);
+  Scene scene;
+  for (int i = 0; i < 80; ++i) {
+    scene.ids.push_back(static_cast<VertexId>(i));
+    scene.true_points.push_back(PointInPatch(options.camera, &rng, 560, 630, 400, 470));
+    scene.old.push_back(false);
+  }
+  for (int i = 0; i < 800; ++i) {
+    scene.ids.push_back(kFirstOldId + static_cast<VertexId>(i));
+    scene.true_points.push_back(PointInPatch(options.camera, &rng, 10, 630, 10, 470));
+    scene.old.push_back(true);
+  }
+  Map map;
+  InsertScene(
+      scene, options.camera, [&](size_t i) { return scene.true_points[i]; }, &map);
+  Tracker tracker(options, &map);
+  tracker.Start(kReferenceKeyframe, Pose3::Identity(), 80, 0.0, 2.0);
+  const Pose3 truth(Eigen::Quaterniond(Eigen::AngleAxisd(0.01, Eigen::Vector3d::UnitY())),
+                    Eigen::Vector3d(0.01, -0.005, 0.004));
+  const SortedFeatures frame = Observe(scene, options.camera, truth, 0.5, &rng);
+
+  const TrackerOutput out = tracker.Track(1, 0.02, frame, /*mapping_busy=*/true);
+  ASSERT_EQ(out.state, TrackingState::kOk);
+  const double recent_only =
+      PositionError(SolveOn(options, scene, scene.true_points, frame, false, true), truth);
+  const double all =
+      PositionError(SolveOn(options, scene, scene.true_points, frame, true, true), truth);
+  ASSERT_GT(recent_only, 4.0 * all) << "the scene does not tell the two solutions apart";
+  EXPECT_LT(PositionError(out.world_from_camera, truth), 1.5 * all);
+  EXPECT_GT(out.num_inliers, 700);  // the old points count as inliers
+}
+
+TEST(Tracker, DriftedDormantPointsAreLeftOut) {
+  // The old part of the map has drifted 4 cm: its points disagree with the recent ones, and
+  // the pose follows the recent points (the drift check in mapping deals with the old ones).
+  const Options options = TrackerOptions();
+  std::mt19937 rng(11);
+  Scene scene;
+  for (int i = 0; i < 300; ++i) {
+    scene.ids.push_back(static_cast<VertexId>(i));
+    scene.true_points.push_back(PointInPatch(options.camera, &rng, 10, 630, 10, 470));
+    scene.old.push_back(false);
+  }
+  for (int i = 0; i < 900; ++i) {
+    scene.ids.push_back(kFirstOldId + static_cast<VertexId>(i));
+    scene.true_points.push_back(PointInPatch(options.camera, &rng, 10, 630, 10, 470));
+    scene.old.push_back(true);
+  }
+  const Eigen::Vector3d drift(0.04, 0.0, 0.0);
+  std::vector<Eigen::Vector3d> mapped = scene.true_points;
+  for (size_t i = 0; i < mapped.size(); ++i) {
+    if (scene.old[i]) mapped[i] += drift;
+  }
+  Map map;
+  InsertScene(
+      scene, options.camera, [&](size_t i) { return mapped[i]; }, &map);
+  Tracker tracker(options, &map);
+  tracker.Start(kReferenceKeyframe, Pose3::Identity(), 300, 0.0, 2.0);
+  const Pose3 truth(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.005, 0.0, 0.002));
+  const SortedFeatures frame = Observe(scene, options.camera, truth, 0.5, &rng);
+
+  const TrackerOutput out = tracker.Track(1, 0.02, frame, /*mapping_busy=*/true);
+  ASSERT_EQ(out.state, TrackingState::kOk);
+  const double joint = PositionError(SolveOn(options, scene, mapped, frame, true, true), truth);
+  ASSERT_GT(joint, 0.01) << "the drift does not pull a joint solution";
+  // Exactly the solution on the recent points (same solver, same points, same start).
+  const Pose3 recent = SolveOn(options, scene, mapped, frame, false, true);
+  EXPECT_LT(PositionError(out.world_from_camera, recent), 1e-9);
+  EXPECT_LT(PositionError(out.world_from_camera, truth), 2e-3);
+}
+
+TEST(Tracker, FramesRecordAgainstAKeyframeStillQueuedForMapping) {
+  // A keyframe candidate that mapping has not inserted yet is the reference of the next
+  // frames; the recorded relative pose is taken from the pose the candidate was made with.
+  const Options options = TrackerOptions();
+  std::mt19937 rng(3);
+  Scene scene;
+  for (int i = 0; i < 400; ++i) {
+    scene.ids.push_back(static_cast<VertexId>(i));
+    scene.true_points.push_back(PointInPatch(options.camera, &rng, 10, 630, 10, 470));
+    scene.old.push_back(false);
+  }
+  Map map;
+  InsertScene(
+      scene, options.camera, [&](size_t i) { return scene.true_points[i]; }, &map);
+  Tracker tracker(options, &map);
+  tracker.Start(kReferenceKeyframe, Pose3::Identity(), 400, 0.0, 2.0);
+  // Past keyframe_max_interval_s: the first frame makes a keyframe.
+  const Pose3 first(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.01, 0.0, 0.0));
+  TrackerOutput made =
+      tracker.Track(1, 2.0, Observe(scene, options.camera, first, 0.0, &rng), false);
+  ASSERT_TRUE(made.keyframe.has_value());
+  const KeyframeCandidate candidate = *made.keyframe;  // never handed to mapping here
+  const Pose3 second(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.012, 0.001, 0.0));
+  const TrackerOutput out =
+      tracker.Track(2, 2.01, Observe(scene, options.camera, second, 0.0, &rng), true);
+  ASSERT_EQ(out.state, TrackingState::kOk);
+  ASSERT_TRUE(out.reference_keyframe.has_value());
+  EXPECT_EQ(*out.reference_keyframe, candidate.id);
+  const Pose3 expected = candidate.world_from_camera.Inverse() * out.world_from_camera;
+  EXPECT_LT((out.reference_from_camera.translation() - expected.translation()).norm(), 1e-12);
+  EXPECT_LT(out.reference_from_camera.rotation().angularDistance(expected.rotation()), 1e-12);
+  EXPECT_LT(PositionError(candidate.world_from_camera * out.reference_from_camera, second), 1e-6);
+}
+
+}  // namespace
+}  // namespace m2s::slam
