@@ -153,6 +153,38 @@ TEST_F(CliToolsTest, EvalRecoversAKnownSimilarity) {
   EXPECT_GT(nlohmann::json::parse(se3.out).at("ate_rmse").get<double>(), 0.1);
 }
 
+TEST_F(CliToolsTest, EvalSavesThePerPoseErrors) {
+  // One pose displaced by 0.25 m, no alignment: that pose's error is 0.25 m, every other 0.
+  const Trajectory gt = DefaultTrajectory();
+  const size_t displaced = gt.size() / 3;
+  std::vector<TimedPose> est_poses(gt.begin(), gt.end());
+  est_poses[displaced].world_from_camera =
+      Pose3(est_poses[displaced].world_from_camera.rotation(),
+            est_poses[displaced].world_from_camera.translation() + Eigen::Vector3d(0, 0.15, 0.2));
+  const Expected<Trajectory> est = Trajectory::FromPoses(est_poses);
+  ASSERT_TRUE(est.ok());
+  ASSERT_TRUE(WriteTum((dir_ / "gt.tum").string(), gt).ok());
+  ASSERT_TRUE(WriteTum((dir_ / "est.tum").string(), *est).ok());
+  const fs::path errors = dir_ / "errors.txt";
+  const RunResult r = RunTool(dir_, "m2s_eval",
+                              (dir_ / "gt.tum").string() + " " + (dir_ / "est.tum").string() +
+                                  " --align none --save-errors " + errors.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::ifstream in(errors);
+  std::string line;
+  ASSERT_TRUE(std::getline(in, line));
+  EXPECT_EQ(line[0], '#');
+  size_t n = 0;
+  double t = 0.0, e = 0.0;
+  while (in >> t >> e) {
+    ASSERT_LT(n, gt.size());
+    EXPECT_NEAR(t, gt[n].timestamp, 1e-6);
+    EXPECT_NEAR(e, n == displaced ? 0.25 : 0.0, 1e-6) << "pose " << n;
+    ++n;
+  }
+  EXPECT_EQ(n, gt.size());
+}
+
 TEST_F(CliToolsTest, EvalRejectsBadInputWithOneLine) {
   const RunResult r = RunTool(dir_, "m2s_eval", "/nonexistent/gt.tum /nonexistent/est.tum --json");
   EXPECT_NE(r.exit_code, 0);
