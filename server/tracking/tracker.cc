@@ -18,6 +18,10 @@ constexpr double kChi2TwoDof = 5.991;
 // in the recent points makes them fit their own pose a little better than the noise alone).
 constexpr double kAgreementChi2 = 22.46;
 constexpr double kAgreementPerPoint = 0.5;
+// SolvePoseFromPrior: a result under this fraction of the prior's inliers is retried, with
+// this many classification rounds.
+constexpr double kPriorInlierFraction = 0.97;
+constexpr int kRetryRounds = 10;
 // Below this fraction of the reference keyframe's points, a keyframe is made even when mapping
 // is busy.
 constexpr double kCriticalTrackedRatio = 0.5;  // RANSAC input, subsampled evenly beyond this
@@ -35,6 +39,62 @@ PoseOnlyOptions MakePoseOptions(const Options& options) {
 }
 
 }  // namespace
+
+int SolvePoseFromPrior(const Camera& camera, const PoseOnlyOptions& options,
+                       const std::vector<Eigen::Vector3d>& points_world,
+                       const std::vector<Eigen::Vector2d>& uvs,
+                       const Pose3& prior_camera_from_world, Pose3* camera_from_world) {
+  const double max_err_sq = options.chi2_threshold * options.pixel_sigma * options.pixel_sigma;
+  auto inliers_at = [&](const Pose3& pose, std::vector<bool>* mask) {
+    if (!pose.AllFinite()) return -1;
+    int n = 0;
+    if (mask != nullptr) mask->assign(points_world.size(), false);
+    for (size_t i = 0; i < points_world.size(); ++i) {
+      const Eigen::Vector3d pc = pose * points_world[i];
+      if (!(pc.z() > 0.0) || (camera.Project(pc) - uvs[i]).squaredNorm() > max_err_sq) continue;
+      ++n;
+      if (mask != nullptr) (*mask)[i] = true;
+    }
+    return n;
+  };
+  Pose3 best = prior_camera_from_world;
+  OptimizePose(camera, options, points_world, uvs, &best);
+  int best_inliers = inliers_at(best, nullptr);
+  std::vector<bool> prior_mask;
+  const int prior_inliers = inliers_at(prior_camera_from_world, &prior_mask);
+  if (best_inliers >= kPriorInlierFraction * prior_inliers) {
+    *camera_from_world = best;
+    return best_inliers;
+  }
+  auto consider = [&](const Pose3& candidate) {
+    const int n = inliers_at(candidate, nullptr);
+    if (n > best_inliers) {
+      best = candidate;
+      best_inliers = n;
+    }
+  };
+  // More rounds let the classification bring the prior's inliers back.
+  PoseOnlyOptions longer = options;
+  longer.rounds = std::max(options.rounds, kRetryRounds);
+  Pose3 retry = prior_camera_from_world;
+  OptimizePose(camera, longer, points_world, uvs, &retry);
+  consider(retry);
+  // On the prior's inliers alone: the pose the consistent majority supports.
+  if (best_inliers < kPriorInlierFraction * prior_inliers) {
+    std::vector<Eigen::Vector3d> points;
+    std::vector<Eigen::Vector2d> observed;
+    for (size_t i = 0; i < points_world.size(); ++i) {
+      if (!prior_mask[i]) continue;
+      points.push_back(points_world[i]);
+      observed.push_back(uvs[i]);
+    }
+    Pose3 seeded = prior_camera_from_world;
+    OptimizePose(camera, options, points, observed, &seeded);
+    consider(seeded);
+  }
+  *camera_from_world = best;
+  return best_inliers;
+}
 
 Tracker::Tracker(const Options& options, Map* map) : options_(options), map_(map) {}
 
@@ -127,10 +187,9 @@ bool Tracker::TrackWithModel(const Association& a, Pose3* camera_from_world,
       uvs.push_back(a.uvs[i]);
     }
     if (static_cast<int>(points.size()) < options_.min_tracked_points) return false;
-    *pose = prior;
-    const PoseOnlyResult r =
-        OptimizePose(options_.camera, MakePoseOptions(options_), points, uvs, pose);
-    return pose->AllFinite() && r.num_inliers >= options_.min_tracked_points;
+    const int inliers =
+        SolvePoseFromPrior(options_.camera, MakePoseOptions(options_), points, uvs, prior, pose);
+    return inliers >= options_.min_tracked_points;
   };
   // Dormant points (mapped long ago) may carry drift not yet corrected. They are left out
   // only when they disagree with the recent ones: the recent points alone can be few and

@@ -16,6 +16,7 @@
 
 #include "m2s/slam/system.h"
 #include "map/map.h"
+#include "optimization/problems.h"
 #include "tracking/frame_validation.h"
 
 namespace m2s::slam {
@@ -43,6 +44,18 @@ struct TrackerOutput {
   Pose3 reference_from_camera;
   std::optional<KeyframeCandidate> keyframe;
 };
+
+// Pose-only optimisation from a motion prior, guarded by the inlier count. Badly
+// triangulated points (or points mapped from a keyframe whose pose was off) can pull the
+// first robust round off a good prior, and the chi-square classification then locks the wrong
+// inliers in: the result has fewer inliers than the prior had. Then the solve is repeated with
+// more classification rounds, and once more on the prior's own inliers, and the candidate with
+// the most inliers (over all the given points) wins. Returns that count and writes the pose;
+// -1 when no candidate is finite.
+int SolvePoseFromPrior(const Camera& camera, const PoseOnlyOptions& options,
+                       const std::vector<Eigen::Vector3d>& points_world,
+                       const std::vector<Eigen::Vector2d>& uvs,
+                       const Pose3& prior_camera_from_world, Pose3* camera_from_world);
 
 class Tracker {
  public:
