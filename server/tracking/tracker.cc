@@ -45,29 +45,27 @@ int SolvePoseFromPrior(const Camera& camera, const PoseOnlyOptions& options,
                        const std::vector<Eigen::Vector2d>& uvs,
                        const Pose3& prior_camera_from_world, Pose3* camera_from_world) {
   const double max_err_sq = options.chi2_threshold * options.pixel_sigma * options.pixel_sigma;
-  auto inliers_at = [&](const Pose3& pose, std::vector<bool>* mask) {
+  auto is_inlier = [&](const Pose3& pose, size_t i) {
+    const Eigen::Vector3d pc = pose * points_world[i];
+    return pc.z() > 0.0 && (camera.Project(pc) - uvs[i]).squaredNorm() <= max_err_sq;
+  };
+  auto inliers_at = [&](const Pose3& pose) {
     if (!pose.AllFinite()) return -1;
     int n = 0;
-    if (mask != nullptr) mask->assign(points_world.size(), false);
-    for (size_t i = 0; i < points_world.size(); ++i) {
-      const Eigen::Vector3d pc = pose * points_world[i];
-      if (!(pc.z() > 0.0) || (camera.Project(pc) - uvs[i]).squaredNorm() > max_err_sq) continue;
-      ++n;
-      if (mask != nullptr) (*mask)[i] = true;
-    }
+    for (size_t i = 0; i < points_world.size(); ++i) n += is_inlier(pose, i) ? 1 : 0;
     return n;
   };
   Pose3 best = prior_camera_from_world;
-  OptimizePose(camera, options, points_world, uvs, &best);
-  int best_inliers = inliers_at(best, nullptr);
-  std::vector<bool> prior_mask;
-  const int prior_inliers = inliers_at(prior_camera_from_world, &prior_mask);
+  // OptimizePose classifies every point at its final pose by the same chi-square bound.
+  const PoseOnlyResult first = OptimizePose(camera, options, points_world, uvs, &best);
+  int best_inliers = best.AllFinite() ? first.num_inliers : -1;
+  const int prior_inliers = inliers_at(prior_camera_from_world);
   if (best_inliers >= kPriorInlierFraction * prior_inliers) {
     *camera_from_world = best;
     return best_inliers;
   }
   auto consider = [&](const Pose3& candidate) {
-    const int n = inliers_at(candidate, nullptr);
+    const int n = inliers_at(candidate);
     if (n > best_inliers) {
       best = candidate;
       best_inliers = n;
@@ -84,7 +82,7 @@ int SolvePoseFromPrior(const Camera& camera, const PoseOnlyOptions& options,
     std::vector<Eigen::Vector3d> points;
     std::vector<Eigen::Vector2d> observed;
     for (size_t i = 0; i < points_world.size(); ++i) {
-      if (!prior_mask[i]) continue;
+      if (!is_inlier(prior_camera_from_world, i)) continue;
       points.push_back(points_world[i]);
       observed.push_back(uvs[i]);
     }

@@ -33,6 +33,16 @@ Eigen::Vector3d PointInPatch(const Camera& camera, std::mt19937* rng, double u0,
   return camera.Unproject({u(*rng), v(*rng)}, depth(*rng));
 }
 
+// Appends n points (ids from first_id) projecting inside the patch of the identity camera.
+void AddPoints(const Camera& camera, int n, VertexId first_id, bool old, double u0, double u1,
+               double v0, double v1, std::mt19937* rng, Scene* scene) {
+  for (int i = 0; i < n; ++i) {
+    scene->ids.push_back(first_id + static_cast<VertexId>(i));
+    scene->true_points.push_back(PointInPatch(camera, rng, u0, u1, v0, v1));
+    scene->old.push_back(old);
+  }
+}
+
 Options TrackerOptions() {
   Options options;
   options.camera = Camera::FromHorizontalFov(640, 480, 90.0);
@@ -163,16 +173,8 @@ TEST(Tracker, ConsistentDormantPointsJoinThePose) {
   const Options options = TrackerOptions();
   std::mt19937 rng(7);
   Scene scene;
-  for (int i = 0; i < 80; ++i) {
-    scene.ids.push_back(static_cast<VertexId>(i));
-    scene.true_points.push_back(PointInPatch(options.camera, &rng, 560, 630, 400, 470));
-    scene.old.push_back(false);
-  }
-  for (int i = 0; i < 800; ++i) {
-    scene.ids.push_back(kFirstOldId + static_cast<VertexId>(i));
-    scene.true_points.push_back(PointInPatch(options.camera, &rng, 10, 630, 10, 470));
-    scene.old.push_back(true);
-  }
+  AddPoints(options.camera, 80, 0, false, 560, 630, 400, 470, &rng, &scene);
+  AddPoints(options.camera, 800, kFirstOldId, true, 10, 630, 10, 470, &rng, &scene);
   Map map;
   InsertScene(
       scene, options.camera, [&](size_t i) { return scene.true_points[i]; }, &map);
@@ -199,16 +201,8 @@ TEST(Tracker, DriftedDormantPointsAreLeftOut) {
   const Options options = TrackerOptions();
   std::mt19937 rng(11);
   Scene scene;
-  for (int i = 0; i < 300; ++i) {
-    scene.ids.push_back(static_cast<VertexId>(i));
-    scene.true_points.push_back(PointInPatch(options.camera, &rng, 10, 630, 10, 470));
-    scene.old.push_back(false);
-  }
-  for (int i = 0; i < 900; ++i) {
-    scene.ids.push_back(kFirstOldId + static_cast<VertexId>(i));
-    scene.true_points.push_back(PointInPatch(options.camera, &rng, 10, 630, 10, 470));
-    scene.old.push_back(true);
-  }
+  AddPoints(options.camera, 300, 0, false, 10, 630, 10, 470, &rng, &scene);
+  AddPoints(options.camera, 900, kFirstOldId, true, 10, 630, 10, 470, &rng, &scene);
   const Eigen::Vector3d drift(0.04, 0.0, 0.0);
   std::vector<Eigen::Vector3d> mapped = scene.true_points;
   for (size_t i = 0; i < mapped.size(); ++i) {
@@ -238,11 +232,7 @@ TEST(Tracker, FramesRecordAgainstAKeyframeStillQueuedForMapping) {
   const Options options = TrackerOptions();
   std::mt19937 rng(3);
   Scene scene;
-  for (int i = 0; i < 400; ++i) {
-    scene.ids.push_back(static_cast<VertexId>(i));
-    scene.true_points.push_back(PointInPatch(options.camera, &rng, 10, 630, 10, 470));
-    scene.old.push_back(false);
-  }
+  AddPoints(options.camera, 400, 0, false, 10, 630, 10, 470, &rng, &scene);
   Map map;
   InsertScene(
       scene, options.camera, [&](size_t i) { return scene.true_points[i]; }, &map);
