@@ -29,6 +29,15 @@ if(NOT TARGET lcm::lcm)
                                             INTERFACE_INCLUDE_DIRECTORIES ${LCM_INCLUDE_DIR})
 endif()
 
+# libsodium (bus authentication): Debian ships a pkg-config file, no CMake config.
+find_path(SODIUM_INCLUDE_DIR sodium.h REQUIRED)
+find_library(SODIUM_LIBRARY sodium REQUIRED)
+if(NOT TARGET sodium::sodium)
+  add_library(sodium::sodium UNKNOWN IMPORTED)
+  set_target_properties(sodium::sodium PROPERTIES IMPORTED_LOCATION ${SODIUM_LIBRARY}
+                                                  INTERFACE_INCLUDE_DIRECTORIES ${SODIUM_INCLUDE_DIR})
+endif()
+
 # EGL + OpenGL ES 3.x (Mesa llvmpipe headless, or the vendor driver).
 find_path(EGL_INCLUDE_DIR EGL/egl.h REQUIRED)
 find_library(EGL_LIBRARY EGL REQUIRED)

@@ -3,7 +3,7 @@
 //   m2s_client [--mesh FILE --trajectory GT.tum] [--camera CAMERA.json | --width W --height H
 //              --fov-deg F] [--fps F] [--fast] [--on-device | --lcm-url URL]
 //              [--projector gpu|cpu] [--occlusion] [--noise-px S --outlier-ids P --dropout P
-//              --seed N] [--out DIR]
+//              --seed N] [--key-file FILE [--encrypt]] [--out DIR]
 //
 // Without --mesh / --trajectory it uses the embedded default scene and its trajectory.
 // Prints one summary line (and a progress line while running on a terminal).
@@ -59,6 +59,17 @@ int main(int argc, char** argv) {
       app.add_option("--send-budget", options.send_budget,
                      "Send at most N features a frame, the same id-hash choice (0: all; default: "
                      "--feature-budget)");
+  std::string key_file;
+  bool encrypt = false;
+  double max_message_age_s = options.bus.opener.max_age_s;
+  app.add_option("--key-file", key_file, "Shared secret of the bus: authenticate every message");
+  app.add_flag("--encrypt", encrypt, "Also encrypt payloads (needs --key-file)");
+  app.add_option("--max-message-age", max_message_age_s,
+                 "Keyed bus: refuse messages older than S seconds (0: no check)")
+      ->capture_default_str();
+  app.add_option("--pose-timeout", options.pose_timeout_s,
+                 "--fast: seconds to wait for each pose (a run nobody answers ends after one)")
+      ->capture_default_str();
   app.add_option("--record", options.record_log, "Also write the sent messages to this LCM log");
   app.add_option("--out", options.out_dir, "Output folder")->capture_default_str();
   app.add_flag(
@@ -83,6 +94,12 @@ int main(int argc, char** argv) {
   }
   if (duration_s > 0)
     options.max_frames = std::max(1, static_cast<int>(duration_s * options.fps) + 1);
+  auto security = m2s::wire::MakeBusSecurity(key_file, encrypt, max_message_age_s);
+  if (!security) {
+    std::cerr << "m2s_client: " << security.error() << "\n";
+    return 2;
+  }
+  options.bus = *security;
   options.on_device = lcm_url.empty();
   if (!lcm_url.empty()) options.lcm_url = lcm_url;
   options.progress = isatty(STDERR_FILENO) != 0;

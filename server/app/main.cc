@@ -2,6 +2,10 @@
 //
 //   m2s_server [--lcm-url URL] [--config FILE] [--max-sessions N] [--session-timeout S]
 //              [--save-maps DIR] [--max-features N] [--feature-budget N] [--stats-period S]
+//              [--key-file FILE [--encrypt] [--max-message-age S]] [--stats-out FILE.json]
+//
+// --key-file: the bus's shared secret (head -c 32 /dev/urandom > key); every message in and
+// out is authenticated and replay-checked (common/bus_auth.h). Without it the bus is open.
 //
 // --config reads a YAML/JSON file (cv::FileStorage) whose keys are the flag names with
 // underscores (max_sessions, session_timeout, max_features, feature_budget, stats_period,
@@ -10,6 +14,7 @@
 // on the command line win. SIGINT / SIGTERM stop the server cleanly.
 #include <csignal>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
 
 #include <CLI/CLI.hpp>
@@ -83,7 +88,22 @@ int main(int argc, char** argv) {
   app.add_option("--stats-period", options.stats_period_s, "Seconds between stats (0: never)");
   app.add_flag("--deterministic", options.server.slam.deterministic,
                "Run every session's SLAM deterministically");
+  std::string key_file, stats_out;
+  bool encrypt = false;
+  app.add_option("--stats-out", stats_out, "Write the server's counters (JSON) here at exit");
+  double max_message_age_s = options.bus.opener.max_age_s;
+  app.add_option("--key-file", key_file, "Shared secret of the bus: authenticate every message");
+  app.add_flag("--encrypt", encrypt, "Also encrypt payloads (needs --key-file)");
+  app.add_option("--max-message-age", max_message_age_s,
+                 "Keyed bus: refuse messages older than S seconds (0: no check)")
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
+  auto security = m2s::wire::MakeBusSecurity(key_file, encrypt, max_message_age_s);
+  if (!security) {
+    std::cerr << "m2s_server: " << security.error() << "\n";
+    return 2;
+  }
+  options.bus = *security;
 
   std::string why;
   if (!config.empty() && !ReadConfig(config, app, &options, &why)) {
@@ -120,5 +140,13 @@ int main(int argc, char** argv) {
   sigwait(&signals, &signal_number);
   std::cerr << "m2s_server: " << (signal_number == SIGINT ? "SIGINT" : "SIGTERM") << ", stopping\n";
   server.Stop();
+  if (!stats_out.empty()) {
+    std::ofstream out(stats_out);
+    out << server.CountersJson();
+    if (!out) {
+      std::cerr << "m2s_server: cannot write " << stats_out << "\n";
+      return 1;
+    }
+  }
   return 0;
 }

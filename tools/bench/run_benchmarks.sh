@@ -5,24 +5,31 @@
 # namespaces are not permitted) and on-device; then bench_projection and bench_slam_accuracy
 # when built (short settings). Writes docs/results/system_frame_rate_sweep.md.
 #
+# With BENCH_KEYED=1 every LCM run is repeated on an authenticated bus (--key-file), and
+# bench_bus_auth (the envelope's cost per frame) is added.
+#
 #   tools/bench/run_benchmarks.sh [BUILD_DIR]     (BENCH_DURATION=S seconds per run, default 20;
-#                                                  BENCH_EXTRA=0 skips the projection and SLAM benches)
+#                                                  BENCH_EXTRA=0 skips the projection and SLAM benches;
+#                                                  BENCH_KEYED=1 adds the keyed LCM rows;
+#                                                  BENCH_RATES="120" only these rates)
 set -euo pipefail
 root="$(cd "$(dirname "$0")/../.." && pwd)"
 build="$(cd "${1:-$root/build}" && pwd)"
 bin="$build/bin"
 duration="${BENCH_DURATION:-20}"
-rates=(15 30 60 75 120)
+read -r -a rates <<<"${BENCH_RATES:-15 30 60 75 120}"
 url='udpm://239.255.76.67:7667?ttl=0'
 work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
 
-lcm_run() {  # fps out_dir: server and client as two processes
-  local fps="$1" out="$2"
+head -c 32 /dev/urandom >"$work/bus.key"
+
+lcm_run() {  # fps out_dir [extra flags of both ends]: server and client as two processes
+  local fps="$1" out="$2" flags="${3:-}"
   local script="ip link set lo up 2>/dev/null; ip route add 224.0.0.0/4 dev lo 2>/dev/null;
-    '$bin/m2s_server' --lcm-url '$url' --stats-period 0 2>'$out.server.log' & s=\$!; sleep 0.5;
+    '$bin/m2s_server' --lcm-url '$url' --stats-period 0 $flags 2>'$out.server.log' & s=\$!; sleep 0.5;
     '$bin/m2s_client' --lcm-url '$url' --fps $fps --duration $duration --projector cpu \
-      --no-map-png --out '$out' >'$out.log' 2>&1; rc=\$?; kill -TERM \$s; wait \$s; exit \$rc"
+      --no-map-png $flags --out '$out' >'$out.log' 2>&1; rc=\$?; kill -TERM \$s; wait \$s; exit \$rc"
   if unshare -n true 2>/dev/null; then
     unshare -n sh -c "$script"
   else
@@ -54,6 +61,11 @@ table="$work/table.md"
 for fps in "${rates[@]}"; do
   echo "bench: LCM (two processes) at $fps fps..." >&2
   lcm_run "$fps" "$work/lcm_$fps" && row "LCM udpm loopback" "$fps" "$work/lcm_$fps/metrics.json" >>"$table"
+  if [[ "${BENCH_KEYED:-0}" == 1 ]]; then
+    echo "bench: LCM keyed (two processes) at $fps fps..." >&2
+    lcm_run "$fps" "$work/key_$fps" "--key-file $work/bus.key" &&
+      row "LCM udpm loopback, keyed" "$fps" "$work/key_$fps/metrics.json" >>"$table"
+  fi
   echo "bench: on-device at $fps fps..." >&2
   device_run "$fps" "$work/dev_$fps" && row "on-device" "$fps" "$work/dev_$fps/metrics.json" >>"$table"
 done
@@ -64,6 +76,11 @@ if [[ "${BENCH_EXTRA:-1}" != 0 && -x "$bin/bench_projection" ]]; then
   echo "bench: bench_projection (short)..." >&2
   { echo; echo '### bench_projection (`--benchmark_min_time=0.05`)'; echo; echo '```';
     "$bin/bench_projection" --benchmark_min_time=0.05 2>&1 | tail -n 30; echo '```'; } >>"$extra"
+fi
+if [[ "${BENCH_KEYED:-0}" == 1 && -x "$bin/bench_bus_auth" ]]; then
+  echo "bench: bench_bus_auth..." >&2
+  { echo; echo '### bench_bus_auth (one 2000-feature frame sealed and opened)'; echo; echo '```';
+    "$bin/bench_bus_auth" 2>&1 | tail -n 5; echo '```'; } >>"$extra"
 fi
 if [[ "${BENCH_EXTRA:-1}" != 0 && -x "$bin/bench_slam_accuracy" ]]; then
   echo "bench: bench_slam_accuracy (short)..." >&2

@@ -11,6 +11,12 @@ double NowSeconds() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
 
+int64_t SteadyMicros() {
+  return std::chrono::duration_cast<std::chrono::microseconds>(
+             std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+
 std::chrono::steady_clock::time_point Deadline(double timeout_s) {
   return std::chrono::steady_clock::now() +
          std::chrono::duration_cast<std::chrono::steady_clock::duration>(
@@ -59,6 +65,9 @@ void ClientSession::BeginSession() {
     server_instance_ = 0;
     acked_ = false;
     new_session_pending_ = false;
+    session_first_seq_ = next_seq_;
+    last_answer_s_ = NowSeconds();
+    outstanding_ = false;
     ++counters_.sessions_started;
   }
   replica_.Reset(id);
@@ -94,6 +103,7 @@ Expected<int64_t> ClientSession::Send(wire::FeatureFrame frame) {
   {
     std::lock_guard<std::mutex> lock(mutex_);
     if (!started_ || ended_) return Status::Error("session not running");
+    CheckAnsweredLocked(NowSeconds());
     if (new_session_pending_) old_session = session_id_;
   }
   if (old_session != 0) {
@@ -106,13 +116,16 @@ Expected<int64_t> ClientSession::Send(wire::FeatureFrame frame) {
     std::lock_guard<std::mutex> lock(mutex_);
     seq = next_seq_++;
     frame.session_id = session_id_;
-    frame.seq = seq;
+    frame.seq = seq - session_first_seq_ + 1;
+    outstanding_ = true;
     frame.camera = options_.camera;
     frame.send_wall_us = wire::WallClockMicros();
     bytes = wire::EncodeFeatureFrame(frame);
     FrameRecord record;
     record.seq = seq;
     record.session_id = session_id_;
+    record.wire_seq = frame.seq;
+    record.send_steady_us = SteadyMicros();
     record.capture_time_us = frame.capture_time_us;
     if (frame.ground_truth_world_from_camera) {  // as the server sees it (wire round trip)
       auto wire_pose = wire::FromMessage(wire::ToMessage(*frame.ground_truth_world_from_camera));
@@ -163,6 +176,17 @@ void ClientSession::End() {
   transport_->Stop();
 }
 
+void ClientSession::CheckAnsweredLocked(double now_s) {
+  if (!outstanding_ || new_session_pending_ ||
+      now_s - last_answer_s_ <= options_.unanswered_timeout_s) {
+    return;
+  }
+  ++counters_.server_restarts;
+  new_session_pending_ = true;
+  M2S_LOG(kWarning) << "no answer from the server for " << now_s - last_answer_s_
+                    << " s (session " << session_id_ << "); starting a new session";
+}
+
 void ClientSession::OnMessage(const std::string& channel, const uint8_t* data, size_t size) {
   if (channel == wire::kPoseChannel) {
     auto pose = wire::DecodePoseEstimate(data, size);
@@ -188,34 +212,26 @@ void ClientSession::OnMessage(const std::string& channel, const uint8_t* data, s
   ++counters_.bad_messages;
 }
 
-bool ClientSession::NoteInstanceLocked(int64_t instance) {
-  if (server_instance_ == 0) {
-    server_instance_ = instance;
-    return false;
-  }
-  if (instance == server_instance_) return false;
-  if (!new_session_pending_) {
-    ++counters_.server_restarts;
-    new_session_pending_ = true;
-    M2S_LOG(kWarning) << "server restarted (instance " << server_instance_ << " -> " << instance
-                      << "); starting a new session";
-  }
-  return true;
+bool ClientSession::FromOwnerLocked(int64_t instance) {
+  if (acked_ && instance == server_instance_) return true;
+  ++counters_.foreign_server_messages;
+  return false;
 }
 
 void ClientSession::OnPose(const pose_estimate_t& pose) {
-  const int64_t now_us = wire::WallClockMicros();
+  const int64_t now_us = SteadyMicros();
   std::lock_guard<std::mutex> lock(mutex_);
   if (pose.session_id != session_id_) {
     ++counters_.other_session_messages;
     return;
   }
-  if (NoteInstanceLocked(pose.server_instance)) return;
-  if (pose.seq < 1 || pose.seq > static_cast<int64_t>(records_.size())) {
+  if (!FromOwnerLocked(pose.server_instance)) return;
+  const int64_t sent = static_cast<int64_t>(records_.size()) - session_first_seq_ + 1;
+  if (pose.seq < 1 || pose.seq > sent) {
     ++counters_.bad_messages;
     return;
   }
-  FrameRecord& record = records_[pose.seq - 1];
+  FrameRecord& record = records_[pose.seq + session_first_seq_ - 2];
   if (record.answered || record.session_id != pose.session_id) {
     ++counters_.bad_messages;
     return;
@@ -227,8 +243,10 @@ void ClientSession::OnPose(const pose_estimate_t& pose) {
   record.num_inliers = pose.num_inliers;
   record.keyframe_created = pose.keyframe_created;
   record.tracking_ms = pose.tracking_ms;
-  record.latency_ms = static_cast<double>(now_us - pose.frame_send_wall_us) * 1e-3;
+  record.latency_ms = static_cast<double>(now_us - record.send_steady_us) * 1e-3;
   ++counters_.poses_received;
+  last_answer_s_ = NowSeconds();
+  outstanding_ = false;
   cv_.notify_all();
 }
 
@@ -241,7 +259,7 @@ void ClientSession::OnMap(const map_delta_t& delta) {
       ++counters_.other_session_messages;
       return;
     }
-    if (NoteInstanceLocked(delta.server_instance)) return;
+    if (!FromOwnerLocked(delta.server_instance)) return;
     const MapReplica::ApplyResult result = replica_.Apply(delta);
     switch (result) {
       case MapReplica::ApplyResult::kApplied:
@@ -276,19 +294,29 @@ void ClientSession::OnSession(const session_control_t& message) {
   switch (message.type) {
     case session_control_t::HELLO_ACK:
       if (message.session_id != session_id_) return;
-      NoteInstanceLocked(message.server_instance);
+      ++counters_.acks;
+      if (acked_ && message.server_instance != server_instance_) {
+        ++counters_.foreign_server_messages;  // a second server claims the session
+        return;
+      }
+      server_instance_ = message.server_instance;
       acked_ = true;
+      last_answer_s_ = NowSeconds();
       cv_.notify_all();
       return;
     case session_control_t::SESSION_ENDED:
       if (message.session_id != session_id_ || ended_) return;
+      if (!FromOwnerLocked(message.server_instance)) return;
       ++counters_.sessions_ended_by_server;
       new_session_pending_ = true;
       M2S_LOG(kWarning) << "server ended session " << session_id_ << " (" << message.reason
                         << "); starting a new one";
       return;
     case session_control_t::REJECTED:
-      if (message.session_id != session_id_) return;
+      // A full server never acknowledged the session: its refusal is believed only before
+      // an acknowledgement, and it does not end anything (the HELLO is repeated when the
+      // session is renewed after unanswered_timeout_s).
+      if (message.session_id != session_id_ || acked_) return;
       ++counters_.rejected;
       M2S_LOG(kWarning) << "server rejected session " << session_id_ << ": " << message.reason;
       return;
@@ -304,7 +332,9 @@ std::vector<FrameRecord> ClientSession::Records() const {
 
 ClientCounters ClientSession::Counters() const {
   std::lock_guard<std::mutex> lock(mutex_);
-  return counters_;
+  ClientCounters counters = counters_;
+  counters.refused_by_transport = transport_->refused_messages();
+  return counters;
 }
 
 int64_t ClientSession::session_id() const {

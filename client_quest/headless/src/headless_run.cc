@@ -81,7 +81,7 @@ Expected<HeadlessResult> RunHeadless(const HeadlessOptions& options) {
     server.slam.deterministic = server.slam.deterministic || options.fast;
     transport = std::make_unique<client::OnDeviceTransport>(server);
   } else {
-    transport = std::make_unique<client::LcmTransport>(options.lcm_url);
+    transport = std::make_unique<client::LcmTransport>(options.lcm_url, options.bus);
   }
   if (!options.record_log.empty()) {
     transport =
@@ -123,7 +123,10 @@ Expected<HeadlessResult> RunHeadless(const HeadlessOptions& options) {
     if (!seq) return seq.status();
     last_seq = *seq;
     if (options.on_frame_sent) options.on_frame_sent(static_cast<int64_t>(k));
-    if (options.fast) session.WaitForPose(last_seq, options.pose_timeout_s);
+    if (options.fast && !session.WaitForPose(last_seq, options.pose_timeout_s) &&
+        session.Counters().poses_received == 0) {
+      break;  // nobody answers; reported below
+    }
     if (options.progress && Clock::now() >= next_progress) {
       const client::ClientCounters c = session.Counters();
       std::fprintf(stderr, "\rframe %zu/%zu  poses %lld  skipped %lld  map %zu points   ", k + 1,
@@ -135,16 +138,29 @@ Expected<HeadlessResult> RunHeadless(const HeadlessOptions& options) {
     }
   }
   if (options.progress) std::fprintf(stderr, "\r%*s\r", 70, "");
-  if (last_seq > 0) session.WaitForPose(last_seq, options.pose_timeout_s);
-  if (!session.SyncMap(kSyncMapTimeoutS)) M2S_LOG(kWarning) << "no full map before the end";
+  const bool answered = session.Counters().poses_received > 0;
+  if (answered && last_seq > 0) session.WaitForPose(last_seq, options.pose_timeout_s);
+  if (answered && !session.SyncMap(kSyncMapTimeoutS)) {
+    M2S_LOG(kWarning) << "no full map before the end";
+  }
   info.wall_s = std::chrono::duration<double>(Clock::now() - start).count();
   const std::vector<client::FrameRecord> records = session.Records();
   const client::MapSnapshot map = session.replica().Snapshot();
   result.counters = session.Counters();
   session.End();
+  if (result.counters.poses_received == 0 && !records.empty()) {
+    const client::ClientCounters& c = result.counters;
+    return Status::Error(
+        "no server answered: " + std::to_string(records.size()) + " frames sent, " +
+        std::to_string(c.acks) + " HELLO acknowledgements, " + std::to_string(c.rejected) +
+        " refusals (server full), " + std::to_string(c.refused_by_transport) +
+        " messages refused by the bus checks (wrong key?)");
+  }
   info.sessions = result.counters.sessions_started;
   info.server_restarts = result.counters.server_restarts;
   info.resync_requests = result.counters.resync_requests;
+  info.bus_refused = result.counters.refused_by_transport;
+  info.foreign_server_messages = result.counters.foreign_server_messages;
   auto metrics = WriteRunOutputs(options.out_dir, records, map, &scene, options.camera, info);
   if (!metrics) return metrics.status();
   result.metrics = std::move(*metrics);

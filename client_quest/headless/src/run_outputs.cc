@@ -6,6 +6,7 @@
 #include <fstream>
 #include <iomanip>
 #include <map>
+#include <optional>
 #include <sstream>
 
 #include <nlohmann/json.hpp>
@@ -92,6 +93,52 @@ Status WriteText(const std::string& path, const std::string& text) {
   return Status::Ok();
 }
 
+// Sim3-aligned evaluation of tracked poses; nullopt with fewer than 3 or when it fails.
+std::optional<TrajectoryEvaluation> EvaluateTracked(const Trajectory& truth,
+                                                    const Trajectory& estimate) {
+  if (estimate.size() < 3) return std::nullopt;
+  EvaluationOptions evaluation;
+  evaluation.alignment = Alignment::kSim3;
+  evaluation.association.max_dt = 1e-4;
+  auto result = EvaluateTrajectory(truth, estimate, evaluation);
+  if (!result) {
+    M2S_LOG(kWarning) << "evaluation failed: " << result.error();
+    return std::nullopt;
+  }
+  return std::move(*result);
+}
+
+// Every session of the run in the order it started, each evaluated in its own frame.
+std::vector<SessionMetrics> SummariseSessions(const std::vector<client::FrameRecord>& records,
+                                              const Trajectory& truth) {
+  std::vector<SessionMetrics> sessions;
+  for (const auto& r : records) {
+    if (sessions.empty() || sessions.back().id != r.session_id) {
+      sessions.push_back(SessionMetrics{});
+      sessions.back().id = r.session_id;
+    }
+    SessionMetrics& s = sessions.back();
+    ++s.frames_sent;
+    if (!r.answered) continue;
+    ++s.frames_processed;
+    s.frames_lost += r.state == pose_estimate_t::STATE_LOST;
+    s.frames_tracked += Tracked(r.state);
+  }
+  for (SessionMetrics& s : sessions) {
+    std::vector<TimedPose> poses;
+    for (const auto& r : TrackedFrames(records, s.id)) {
+      poses.push_back({Seconds(r.capture_time_us), r.world_from_camera});
+    }
+    auto estimate = MakeTrajectory(poses);
+    if (!estimate) continue;
+    if (auto result = EvaluateTracked(truth, *estimate)) {
+      s.ate_rmse = result->ate.rmse;
+      s.world_from_estimate = result->reference_from_estimate;
+    }
+  }
+  return sessions;
+}
+
 }  // namespace
 
 std::vector<client::FrameRecord> TrackedFrames(const std::vector<client::FrameRecord>& records,
@@ -144,25 +191,24 @@ Expected<RunMetrics> WriteRunOutputs(const std::string& out_dir,
   m.keyframes = static_cast<int64_t>(map.keyframes.size());
   m.map_points = static_cast<int64_t>(map.points.size());
 
-  // Ground truth at every frame time, the estimate of the best session.
+  // Ground truth at every frame time. The run's trajectory is every tracked frame of every
+  // session, evaluated as one (a run split over sessions shows as such); each session is also
+  // evaluated on its own.
   std::vector<TimedPose> truth_poses;
   for (const auto& r : records) {
     if (r.ground_truth_world_from_camera) {
       truth_poses.push_back({Seconds(r.capture_time_us), *r.ground_truth_world_from_camera});
     }
   }
-  int64_t best_session = map.session_id;
-  int64_t best_count = -1;
-  for (const auto& [session, count] : tracked_per_session) {
-    if (count > best_count) best_session = session, best_count = count;
-  }
-  std::vector<TimedPose> estimate_poses;
-  for (const auto& r : TrackedFrames(records, best_session)) {
-    estimate_poses.push_back({Seconds(r.capture_time_us), r.world_from_camera});
-  }
   auto truth = MakeTrajectory(truth_poses);
-  auto estimate = MakeTrajectory(estimate_poses);
   if (!truth) return Status::Error("ground truth: " + truth.error());
+  std::vector<TimedPose> estimate_poses;
+  for (const auto& r : records) {
+    if (r.answered && Tracked(r.state)) {
+      estimate_poses.push_back({Seconds(r.capture_time_us), r.world_from_camera});
+    }
+  }
+  auto estimate = MakeTrajectory(estimate_poses);
   if (!estimate) return Status::Error("estimate: " + estimate.error());
   if (Status s = WriteTum(path("groundtruth.tum"), *truth); !s) return s;
   if (Status s = WriteTum(path("trajectory.tum"), *estimate); !s) return s;
@@ -176,28 +222,26 @@ Expected<RunMetrics> WriteRunOutputs(const std::string& out_dir,
   Sim3 world_from_estimate;
   std::vector<Eigen::Vector3d> truth_xyz, estimate_xyz;
   for (const auto& p : truth->poses()) truth_xyz.push_back(p.world_from_camera.translation());
-  if (estimate->size() >= 3) {
-    EvaluationOptions evaluation;
-    evaluation.alignment = Alignment::kSim3;
-    evaluation.association.max_dt = 1e-4;
-    auto result = EvaluateTrajectory(*truth, *estimate, evaluation);
-    if (result) {
-      m.ate_rmse = result->ate.rmse;
-      m.ate_scale = result->scale;
-      world_from_estimate = result->reference_from_estimate;
-      for (const auto& p : estimate->poses()) {
-        estimate_xyz.push_back(world_from_estimate * p.world_from_camera.translation());
+  if (auto run = EvaluateTracked(*truth, *estimate)) {
+    m.ate_rmse = run->ate.rmse;
+    m.ate_scale = run->scale;
+    world_from_estimate = run->reference_from_estimate;
+    for (const auto& p : estimate->poses()) {
+      estimate_xyz.push_back(world_from_estimate * p.world_from_camera.translation());
+    }
+  }
+  m.sessions = SummariseSessions(records, *truth);
+  for (const SessionMetrics& session : m.sessions) {
+    if (session.id != map.session_id || !session.world_from_estimate) continue;
+    // The map is in the frame of its session.
+    world_from_estimate = *session.world_from_estimate;
+    if (scene && !map.points.empty()) {
+      std::vector<MapPoint> points;
+      for (size_t i = 0; i < map.points.size(); ++i) {
+        points.push_back({map.point_ids[i], map.points[i].cast<double>()});
       }
-      if (scene && !map.points.empty() && map.session_id == best_session) {
-        std::vector<MapPoint> points;
-        for (size_t i = 0; i < map.points.size(); ++i) {
-          points.push_back({map.point_ids[i], map.points[i].cast<double>()});
-        }
-        auto map_error = EvaluateMap(points, scene->positions, world_from_estimate);
-        if (map_error) m.map_rmse = map_error->rmse;
-      }
-    } else {
-      M2S_LOG(kWarning) << "evaluation failed: " << result.error();
+      auto map_error = EvaluateMap(points, scene->positions, world_from_estimate);
+      if (map_error) m.map_rmse = map_error->rmse;
     }
   }
 
@@ -246,7 +290,19 @@ Expected<RunMetrics> WriteRunOutputs(const std::string& out_dir,
   j["sessions"] = info.sessions;
   j["server_restarts"] = info.server_restarts;
   j["resync_requests"] = info.resync_requests;
+  j["bus_refused"] = info.bus_refused;
+  j["foreign_server_messages"] = info.foreign_server_messages;
   j["wall_s"] = info.wall_s;
+  nlohmann::json sessions = nlohmann::json::array();
+  for (const SessionMetrics& session : m.sessions) {
+    sessions.push_back({{"session_id", session.id},
+                        {"frames_sent", session.frames_sent},
+                        {"frames_processed", session.frames_processed},
+                        {"frames_tracked", session.frames_tracked},
+                        {"frames_lost", session.frames_lost},
+                        {"ate_rmse", session.ate_rmse}});
+  }
+  j["session_list"] = sessions;
   if (Status s = WriteText(path("metrics.json"), j.dump(2) + "\n"); !s) return s;
   return m;
 }

@@ -5,10 +5,11 @@
 //                 [--projector gpu|cpu] [--width W --height H --fov-deg F] [--stage]
 //                 [--frames N] [--events reset@N,overlay@N,quit@N] [--keys]
 //                 [--no-overlay] [--no-mesh] [--budget N] [--noise-px S] [--seed N]
-//                 [--out DIR]
+//                 [--key-file FILE [--encrypt]] [--out DIR]
 //
 // The JSON config (the file a headset build reads from its storage) has the same settings:
 //   {"mesh": "", "transport": "on-device" | "lcm", "lcm_url": "udpm://...?ttl=0",
+//    "key_file": "/path/to/bus.key", "encrypt": false,
 //    "projector": "gpu", "camera": {"width": 640, "height": 480, "fov_deg": 90},
 //    "stage": false, "frames": 0, "events": "", "overlay": true, "mesh_visible": true,
 //    "out": "out"}
@@ -19,6 +20,7 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include "m2s/common/bus_auth.h"
 #include "m2s/common/logging.h"
 #include "m2s/xr/xr_client.h"
 
@@ -28,7 +30,7 @@ using m2s::xr::XrClientOptions;
 
 // Applies the JSON config to the options; false with a reason on a bad file or field.
 bool ApplyConfig(const std::string& path, XrClientOptions* options, std::string* events,
-                 std::string* why) {
+                 std::string* key_file, bool* encrypt, std::string* why) {
   std::ifstream file(path);
   if (!file) {
     *why = "cannot open config '" + path + "'";
@@ -44,6 +46,8 @@ bool ApplyConfig(const std::string& path, XrClientOptions* options, std::string*
     }
     options->on_device = transport == "on-device";
     options->lcm_url = j.value("lcm_url", options->lcm_url);
+    *key_file = j.value("key_file", *key_file);
+    *encrypt = j.value("encrypt", *encrypt);
     options->projector = j.value("projector", options->projector);
     if (j.contains("camera")) {
       const auto& c = j.at("camera");
@@ -93,15 +97,29 @@ int main(int argc, char** argv) {
   int send_budget = 0;
   auto* send_budget_flag = app.add_option("--send-budget", send_budget,
                                           "send at most N features a frame, by id rank (0: all)");
+  std::string key_file_flag;
+  bool encrypt_flag = false;
+  app.add_option("--key-file", key_file_flag, "shared secret of the LCM bus (authenticated)");
+  app.add_flag("--encrypt", encrypt_flag, "also encrypt payloads (needs a key)");
   on_device_flag->excludes(lcm_flag);
   CLI11_PARSE(app, argc, argv);
 
   XrClientOptions options;
-  std::string why, event_text;
-  if (!config_path.empty() && !ApplyConfig(config_path, &options, &event_text, &why)) {
+  std::string why, event_text, key_file;
+  bool encrypt = false;
+  if (!config_path.empty() &&
+      !ApplyConfig(config_path, &options, &event_text, &key_file, &encrypt, &why)) {
     std::cerr << "m2s_xr_client: " << why << "\n";
     return 2;
   }
+  if (!key_file_flag.empty()) key_file = key_file_flag;
+  auto security = m2s::wire::MakeBusSecurity(key_file, encrypt || encrypt_flag,
+                                             options.bus.opener.max_age_s);
+  if (!security) {
+    std::cerr << "m2s_xr_client: " << security.error() << "\n";
+    return 2;
+  }
+  options.bus = *security;
   if (!mesh.empty()) options.mesh_path = mesh;
   if (*on_device_flag) options.on_device = true;
   if (*lcm_flag) {

@@ -93,7 +93,7 @@ Expected<SlamLink> OpenLink(const XrClientOptions& options, uint64_t seed, doubl
   if (options.on_device) {
     link.transport = std::make_unique<client::OnDeviceTransport>(options.server);
   } else {
-    link.transport = std::make_unique<client::LcmTransport>(options.lcm_url);
+    link.transport = std::make_unique<client::LcmTransport>(options.lcm_url, options.bus);
   }
   client::ClientSessionOptions session_options;
   session_options.camera = options.camera;

@@ -3,6 +3,7 @@
 #include <chrono>
 
 #include <lcm/lcm-cpp.hpp>
+#include <nlohmann/json.hpp>
 
 #include "m2s/common/logging.h"
 
@@ -12,10 +13,20 @@ namespace {
 constexpr int kIoTimeoutMs = 50;
 constexpr double kTickPeriodS = 0.1;
 
+LcmServerOptions WithInstance(LcmServerOptions options) {
+  if (options.server.server_instance == 0) {
+    options.server.server_instance = static_cast<int64_t>(wire::RandomSenderId());
+  }
+  return options;
+}
+
 }  // namespace
 
 LcmServer::LcmServer(LcmServerOptions options, SystemFactory factory)
-    : options_(std::move(options)), factory_(std::move(factory)) {}
+    : options_(WithInstance(std::move(options))),
+      sealer_(options_.bus.key, options_.bus.encrypt, static_cast<uint64_t>(options_.server.server_instance)),
+      opener_(options_.bus.key, options_.bus.opener),
+      factory_(std::move(factory)) {}
 
 LcmServer::~LcmServer() { Stop(); }
 
@@ -23,6 +34,7 @@ Status LcmServer::Start() {
   std::string why;
   if (!options_.server.Check(&why)) return Status::Error("server options: " + why);
   if (!(options_.stats_period_s >= 0)) return Status::Error("stats period must be >= 0");
+  if (!options_.bus.opener.Check(&why)) return Status::Error("bus options: " + why);
   lcm_ = std::make_unique<lcm::LCM>(options_.lcm_url);
   if (!lcm_->good()) {
     lcm_.reset();
@@ -31,8 +43,7 @@ Status LcmServer::Start() {
   manager_ = std::make_unique<SessionManager>(
       options_.server,
       [this](const std::string& channel, std::vector<uint8_t> bytes) {
-        std::lock_guard<std::mutex> lock(publish_mutex_);
-        lcm_->publish(channel, bytes.data(), static_cast<unsigned int>(bytes.size()));
+        PublishSealed(channel, bytes);
       },
       factory_);
   lcm_->subscribe(wire::kFrameChannel, &LcmServer::OnRaw, this);
@@ -40,7 +51,15 @@ Status LcmServer::Start() {
   stop_ = false;
   io_thread_ = std::thread([this] { IoLoop(); });
   M2S_LOG(kInfo) << "m2s server " << manager_->server_instance() << " listening on "
-                 << options_.lcm_url;
+                 << options_.lcm_url
+                 << (options_.bus.key ? (options_.bus.encrypt ? " (authenticated, encrypted)"
+                                                      : " (authenticated)")
+                                  : "");
+  if (!options_.bus.key) {
+    M2S_LOG(kWarning) << "NO BUS KEY: messages are neither authenticated nor replay-checked; "
+                         "anyone on this LCM network can end, reset or feed sessions. Use "
+                         "--key-file outside local development.";
+  }
   return Status::Ok();
 }
 
@@ -51,13 +70,23 @@ void LcmServer::Stop() {
   if (manager_) {
     manager_->Shutdown();
     M2S_LOG(kInfo) << "m2s server stopped: " << manager_->StatsLine();
+    final_counters_ = manager_->Counters();
   }
   manager_.reset();
   lcm_.reset();
 }
 
 void LcmServer::OnRaw(const lcm::ReceiveBuffer* buffer, const std::string& channel) {
-  manager_->HandleMessage(channel, buffer->data, buffer->data_size);
+  auto opened = opener_.Open(channel, static_cast<const uint8_t*>(buffer->data),
+                             buffer->data_size, wire::WallClockMicros());
+  if (!opened) return manager_->Drop(opened.reason(), opened.error());
+  manager_->HandleMessage(channel, opened->data, opened->size, opened->sender);
+}
+
+void LcmServer::PublishSealed(const std::string& channel, const std::vector<uint8_t>& bytes) {
+  const std::vector<uint8_t> sealed = sealer_.Seal(channel, bytes);
+  std::lock_guard<std::mutex> lock(publish_mutex_);
+  lcm_->publish(channel, sealed.data(), static_cast<unsigned int>(sealed.size()));
 }
 
 void LcmServer::IoLoop() {
@@ -86,16 +115,32 @@ void LcmServer::IoLoop() {
 
 void LcmServer::PublishStats() {
   const server_stats_t stats = manager_->StatsMessage();
-  const std::vector<uint8_t> bytes = wire::Encode(stats);
-  {
-    std::lock_guard<std::mutex> lock(publish_mutex_);
-    lcm_->publish(wire::kStatsChannel, bytes.data(), static_cast<unsigned int>(bytes.size()));
-  }
+  PublishSealed(wire::kStatsChannel, wire::Encode(stats));
   if (options_.log_stats) M2S_LOG(kInfo) << "stats: " << manager_->StatsLine();
 }
 
 ServerCounters LcmServer::Counters() const {
-  return manager_ ? manager_->Counters() : ServerCounters{};
+  return manager_ ? manager_->Counters() : final_counters_;
+}
+
+std::string LcmServer::CountersJson() const {
+  const ServerCounters c = Counters();
+  nlohmann::json drops = nlohmann::json::object();
+  for (int r = 0; r < wire::kNumDropReasons; ++r) {
+    drops[wire::ToString(static_cast<wire::DropReason>(r))] = c.drops[r];
+  }
+  const nlohmann::json j = {{"server_instance", options_.server.server_instance},
+                            {"messages_in", c.messages_in},
+                            {"frames_in", c.frames_in},
+                            {"frames_processed", c.frames_processed},
+                            {"frames_skipped", c.frames_skipped},
+                            {"session_messages", c.session_messages},
+                            {"sessions_started", c.sessions_started},
+                            {"sessions_ended", c.sessions_ended},
+                            {"authenticated", options_.bus.key.has_value()},
+                            {"drops_total", c.total_drops()},
+                            {"drops", drops}};
+  return j.dump(2) + "\n";
 }
 
 int64_t LcmServer::server_instance() const { return manager_ ? manager_->server_instance() : 0; }

@@ -15,14 +15,15 @@ bool SameCamera(const Camera& a, const Camera& b) {
 
 }  // namespace
 
-Session::Session(SessionManager* manager, int64_t id, const Camera& camera,
+Session::Session(SessionManager* manager, int64_t id, uint64_t owner, const Camera& camera,
                  std::unique_ptr<slam::System> system)
     : manager_(manager),
       id_(id),
+      owner_(owner),
       camera_(camera),
       map_period_(1.0 / manager->options().map_rate_hz),
       system_(std::move(system)),
-      last_activity_(Clock::now()),
+      last_activity_(manager->Now()),
       next_map_time_(Clock::now()) {
   if (!manager_->options().synchronous) worker_ = std::thread([this] { WorkerLoop(); });
 }
@@ -33,7 +34,6 @@ bool Session::Accept(wire::FeatureFrame frame, wire::DropReason* reason, std::st
   const bool synchronous = manager_->options().synchronous;
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    last_activity_ = Clock::now();
     if (stop_) {
       *reason = wire::DropReason::kEndedSession;
       *detail = "session " + std::to_string(id_) + " is ending";
@@ -45,12 +45,19 @@ bool Session::Accept(wire::FeatureFrame frame, wire::DropReason* reason, std::st
                 " after " + std::to_string(last_seq_);
       return false;
     }
+    if (frame.seq - last_seq_ > manager_->options().max_seq_jump) {
+      *reason = wire::DropReason::kSeqJump;
+      *detail = "session " + std::to_string(id_) + ": seq " + std::to_string(frame.seq) +
+                " after " + std::to_string(last_seq_);
+      return false;
+    }
     if (!SameCamera(frame.camera, camera_)) {
       *reason = wire::DropReason::kCameraChanged;
       *detail = "session " + std::to_string(id_) + ": frame camera differs from the session's";
       return false;
     }
     last_seq_ = frame.seq;
+    last_activity_ = manager_->Now();
     if (!synchronous) {
       while (static_cast<int>(queue_.size()) >= manager_->options().queue_capacity) {
         queue_.pop_front();
@@ -78,7 +85,7 @@ bool Session::Accept(wire::FeatureFrame frame, wire::DropReason* reason, std::st
 void Session::RequestResync() {
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    last_activity_ = Clock::now();
+    last_activity_ = manager_->Now();
     resync_pending_ = true;
     cv_.notify_one();
   }
@@ -88,9 +95,8 @@ void Session::RequestResync() {
 void Session::RequestReset() {
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    last_activity_ = Clock::now();
+    last_activity_ = manager_->Now();
     reset_pending_ = true;
-    last_seq_ = INT64_MIN;
     cv_.notify_one();
   }
   if (manager_->options().synchronous) ServicePendingSync();
@@ -122,7 +128,7 @@ void Session::ServicePendingSync() {
 
 void Session::Touch() {
   std::lock_guard<std::mutex> lock(mutex_);
-  last_activity_ = Clock::now();
+  last_activity_ = manager_->Now();
 }
 
 double Session::IdleSeconds(Clock::time_point now) const {

@@ -22,12 +22,15 @@ class Session {
   using Clock = std::chrono::steady_clock;
 
   // Starts the worker unless the manager is synchronous.
-  Session(SessionManager* manager, int64_t id, const Camera& camera,
+  // `owner` is the bus sender that opened the session (0 on an open bus or in-process).
+  Session(SessionManager* manager, int64_t id, uint64_t owner, const Camera& camera,
           std::unique_ptr<slam::System> system);
   ~Session();  // Finish()
 
-  // Caller's (IO) thread: checks the sequence number and camera, then queues the frame (or
-  // tracks it now in synchronous mode). False with the reason when the frame is not usable.
+  // Caller's (IO) thread: checks the sequence number (strictly increasing, by at most
+  // ServerOptions::max_seq_jump, from 0 before the first frame) and the camera, then queues
+  // the frame (or tracks it now in synchronous mode) and counts it as activity. False with the
+  // reason when the frame is not usable; a refused frame does not keep the session alive.
   bool Accept(wire::FeatureFrame frame, wire::DropReason* reason, std::string* detail);
   void RequestResync();
   void RequestReset();
@@ -41,6 +44,7 @@ class Session {
   void Drain();
 
   int64_t id() const { return id_; }
+  uint64_t owner() const { return owner_; }
   const Camera& camera() const { return camera_; }
 
  private:
@@ -53,6 +57,7 @@ class Session {
 
   SessionManager* const manager_;
   const int64_t id_;
+  const uint64_t owner_;
   const Camera camera_;
   const std::chrono::duration<double> map_period_;
   std::unique_ptr<slam::System> system_;
@@ -61,7 +66,7 @@ class Session {
   std::condition_variable cv_;
   std::condition_variable idle_cv_;
   std::deque<wire::FeatureFrame> queue_;
-  int64_t last_seq_ = INT64_MIN;
+  int64_t last_seq_ = 0;
   Clock::time_point last_activity_;
   bool stop_ = false;
   bool busy_ = false;

@@ -52,6 +52,7 @@ bool ServerOptions::Check(std::string* why) const {
   if (max_features <= 0) return fail("max_features must be positive");
   if (!(map_rate_hz > 0) || map_rate_hz > 1000) return fail("map_rate_hz must be in (0, 1000]");
   if (queue_capacity <= 0) return fail("queue_capacity must be positive");
+  if (max_seq_jump <= 0) return fail("max_seq_jump must be positive");
   if (max_ended_sessions <= 0) return fail("max_ended_sessions must be positive");
   if (!(drop_log_period_s >= 0)) return fail("drop_log_period_s must be >= 0");
   return true;
@@ -82,26 +83,27 @@ SessionManager::SessionManager(ServerOptions options, PublishFn publish, SystemF
 
 SessionManager::~SessionManager() { Shutdown(); }
 
-void SessionManager::HandleMessage(const std::string& channel, const void* data, size_t size) {
+void SessionManager::HandleMessage(const std::string& channel, const void* data, size_t size,
+                                   uint64_t sender) {
   {
     std::lock_guard<std::mutex> lock(mutex_);
     ++counters_.messages_in;
   }
   if (channel == wire::kFrameChannel) {
-    HandleFrame(data, size);
+    HandleFrame(data, size, sender);
   } else if (channel == wire::kSessionChannel) {
-    HandleSessionControl(data, size);
+    HandleSessionControl(data, size, sender);
   } else {
     std::lock_guard<std::mutex> lock(mutex_);
     ++counters_.ignored;
   }
 }
 
-void SessionManager::HandleFrame(const void* data, size_t size) {
+void SessionManager::HandleFrame(const void* data, size_t size, uint64_t sender) {
   auto frame = wire::DecodeFeatureFrame(data, size, {options_.max_features});
   if (!frame) return Drop(frame.reason(), frame.error());
   wire::DropReason reason{};
-  auto session = FindOrCreate(frame->session_id, frame->camera, 0, false, &reason);
+  auto session = FindOrCreate(frame->session_id, sender, frame->camera, 0, false, &reason);
   if (!session) return Drop(reason, "frame for session " + std::to_string(frame->session_id));
   std::string detail;
   if (!session->Accept(std::move(*frame), &reason, &detail)) return Drop(reason, detail);
@@ -109,7 +111,7 @@ void SessionManager::HandleFrame(const void* data, size_t size) {
   ++counters_.frames_in;
 }
 
-void SessionManager::HandleSessionControl(const void* data, size_t size) {
+void SessionManager::HandleSessionControl(const void* data, size_t size, uint64_t sender) {
   auto message = wire::DecodeSessionControl(data, size);
   if (!message) return Drop(message.reason(), message.error());
   const session_control_t& m = *message;
@@ -117,7 +119,7 @@ void SessionManager::HandleSessionControl(const void* data, size_t size) {
     case session_control_t::HELLO: {
       auto camera = wire::FromMessage(m.camera);  // checked by the decoder
       wire::DropReason reason{};
-      auto session = FindOrCreate(m.session_id, *camera, m.flags, true, &reason);
+      auto session = FindOrCreate(m.session_id, sender, *camera, m.flags, true, &reason);
       if (!session) return Drop(reason, "HELLO for session " + std::to_string(m.session_id));
       session->Touch();
       session_control_t ack =
@@ -141,6 +143,11 @@ void SessionManager::HandleSessionControl(const void* data, size_t size) {
                     "session message type " + std::to_string(m.type) + " for unknown session " +
                         std::to_string(m.session_id));
       }
+      if (session->owner() != sender) {
+        return Drop(wire::DropReason::kSpoofedSession,
+                    "session message type " + std::to_string(m.type) + " for session " +
+                        std::to_string(m.session_id) + " from sender " + std::to_string(sender));
+      }
       if (m.type == session_control_t::RESET) session->RequestReset();
       if (m.type == session_control_t::RESYNC_REQUEST) session->RequestResync();
       if (m.type == session_control_t::BYE) EndSession(m.session_id, "bye");
@@ -156,12 +163,16 @@ void SessionManager::HandleSessionControl(const void* data, size_t size) {
   ++counters_.session_messages;
 }
 
-std::shared_ptr<Session> SessionManager::FindOrCreate(int64_t session_id, const Camera& camera,
-                                                      int32_t flags, bool from_hello,
-                                                      wire::DropReason* refused) {
+std::shared_ptr<Session> SessionManager::FindOrCreate(int64_t session_id, uint64_t sender,
+                                                      const Camera& camera, int32_t flags,
+                                                      bool from_hello, wire::DropReason* refused) {
   std::unique_lock<std::mutex> lock(mutex_);
   auto it = sessions_.find(session_id);
-  if (it != sessions_.end()) return it->second;
+  if (it != sessions_.end()) {
+    if (it->second->owner() == sender) return it->second;
+    *refused = wire::DropReason::kSpoofedSession;
+    return nullptr;
+  }
   if (shutting_down_ || ended_.count(session_id)) {
     *refused = wire::DropReason::kEndedSession;
     return nullptr;
@@ -186,7 +197,7 @@ std::shared_ptr<Session> SessionManager::FindOrCreate(int64_t session_id, const 
                       << ": SLAM refused the options: " << system.error();
     return nullptr;
   }
-  auto session = std::make_shared<Session>(this, session_id, camera, std::move(*system));
+  auto session = std::make_shared<Session>(this, session_id, sender, camera, std::move(*system));
   sessions_[session_id] = session;
   ++counters_.sessions_started;
   M2S_LOG(kInfo) << "session " << session_id << " started (" << camera.width << "x" << camera.height
@@ -224,8 +235,12 @@ void SessionManager::EndSession(int64_t session_id, const std::string& reason) {
   Publish(wire::kSessionChannel, wire::Encode(m));
 }
 
+std::chrono::steady_clock::time_point SessionManager::Now() const {
+  return options_.clock ? options_.clock() : std::chrono::steady_clock::now();
+}
+
 void SessionManager::Tick() {
-  const auto now = Session::Clock::now();
+  const auto now = Now();
   std::vector<std::shared_ptr<Session>> sessions;
   {
     std::lock_guard<std::mutex> lock(mutex_);

@@ -150,9 +150,20 @@ TEST_F(SessionManagerTest, EveryBadMessageIsCountedUnderItsReason) {
   EXPECT_EQ(stats.num_drop_reasons, wire::kNumDropReasons);
 }
 
+// A manual clock for session activity and timeouts.
+struct ManualClock {
+  std::chrono::steady_clock::time_point now{};
+  void Advance(double seconds) {
+    now += std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+        std::chrono::duration<double>(seconds));
+  }
+};
+
 TEST_F(SessionManagerTest, ByeMaxSessionsAndTimeout) {
   ServerOptions options = SyncOptions();
   options.session_timeout_s = 0.2;
+  ManualClock clock;
+  options.clock = [&clock] { return clock.now; };
   Make(options);
   SendFrame(Frame(1, 1));
   SendFrame(Frame(2, 1));
@@ -163,7 +174,10 @@ TEST_F(SessionManagerTest, ByeMaxSessionsAndTimeout) {
   EXPECT_EQ(manager_->Counters().drops[static_cast<int>(DropReason::kEndedSession)], 1);
   SendFrame(Frame(3, 1));  // room again
   EXPECT_EQ(manager_->Counters().sessions_active, 2);
-  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  clock.Advance(0.19);
+  manager_->Tick();
+  EXPECT_EQ(manager_->Counters().sessions_active, 2);
+  clock.Advance(0.02);
   manager_->Tick();
   EXPECT_EQ(manager_->Counters().sessions_active, 0);
   EXPECT_EQ(manager_->Counters().sessions_ended, 3);
@@ -174,6 +188,65 @@ TEST_F(SessionManagerTest, ByeMaxSessionsAndTimeout) {
   }
   EXPECT_EQ(ended, 3);
   EXPECT_EQ(rejected, 1);
+}
+
+TEST_F(SessionManagerTest, SequenceNumbersJumpOnlyWithinTheBound) {
+  ServerOptions options = SyncOptions();
+  options.max_seq_jump = 100;
+  Make(options);
+  SendFrame(Frame(1, 101));  // the first frame counts from 0
+  EXPECT_EQ(manager_->Counters().drops[static_cast<int>(DropReason::kSeqJump)], 1);
+  SendFrame(Frame(1, 1));
+  SendFrame(Frame(1, INT64_MAX - 1));  // the frame that froze a session
+  SendFrame(Frame(1, 102));
+  EXPECT_EQ(manager_->Counters().drops[static_cast<int>(DropReason::kSeqJump)], 3);
+  SendFrame(Frame(1, 2));    // the real client goes on
+  SendFrame(Frame(1, 101));  // a jump of 99 (lost frames) is allowed
+  const ServerCounters c = manager_->Counters();
+  EXPECT_EQ(c.frames_processed, 3);
+  EXPECT_EQ(c.drops[static_cast<int>(DropReason::kSeqNotIncreasing)], 0);
+}
+
+TEST_F(SessionManagerTest, RefusedFramesDoNotKeepASessionAlive) {
+  ServerOptions options = SyncOptions();
+  options.session_timeout_s = 1.0;
+  ManualClock clock;
+  options.clock = [&clock] { return clock.now; };
+  Make(options);
+  SendFrame(Frame(1, 5));
+  for (int i = 0; i < 15; ++i) {  // 1.5 s of refused frames: replays and huge jumps
+    clock.Advance(0.1);
+    SendFrame(Frame(1, 5));
+    SendFrame(Frame(1, INT64_MAX - 1));
+    manager_->Tick();
+  }
+  EXPECT_EQ(manager_->Counters().sessions_active, 0);
+  EXPECT_EQ(manager_->Counters().sessions_ended, 1);
+}
+
+TEST_F(SessionManagerTest, ASessionBelongsToTheSenderThatOpenedIt) {
+  Make(SyncOptions());
+  constexpr uint64_t kOwner = 17, kStranger = 99;
+  auto send = [&](const std::string& channel, const std::vector<uint8_t>& b, uint64_t sender) {
+    manager_->HandleMessage(channel, b.data(), b.size(), sender);
+  };
+  send(wire::kSessionChannel, Control(session_control_t::HELLO, 1), kOwner);
+  send(wire::kFrameChannel, wire::EncodeFeatureFrame(Frame(1, 1)), kOwner);
+  // A stranger's frame, reset, resync, bye and HELLO for the same session id change nothing.
+  send(wire::kFrameChannel, wire::EncodeFeatureFrame(Frame(1, 2)), kStranger);
+  for (int8_t type : {session_control_t::RESET, session_control_t::RESYNC_REQUEST,
+                      session_control_t::BYE, session_control_t::HELLO}) {
+    send(wire::kSessionChannel, Control(type, 1), kStranger);
+  }
+  EXPECT_EQ(manager_->Counters().drops[static_cast<int>(DropReason::kSpoofedSession)], 5);
+  EXPECT_EQ(manager_->Counters().sessions_active, 1);
+  send(wire::kFrameChannel, wire::EncodeFeatureFrame(Frame(1, 2)), kOwner);
+  EXPECT_EQ(manager_->Counters().frames_processed, 2);
+  send(wire::kSessionChannel, Control(session_control_t::BYE, 1), kOwner);
+  EXPECT_EQ(manager_->Counters().sessions_active, 0);
+  int acks = 0;
+  for (const auto& m : published_.control) acks += m.type == session_control_t::HELLO_ACK;
+  EXPECT_EQ(acks, 1);  // the stranger's HELLO got no acknowledgement
 }
 
 TEST_F(SessionManagerTest, WorkerModeTracksEveryFrameWhenPacedAndShutsDownCleanly) {

@@ -73,6 +73,12 @@ enum class DropReason : int {
   kMaxSessions,        // a new session while the server is full
   kCameraChanged,      // a frame whose camera differs from its session's camera
   kBadSessionMessage,  // unknown session_control_t type or invalid field
+  kNotAuthenticated,   // keyed bus: no envelope, a tag that does not verify, another key
+  kReplayed,           // keyed bus: an authentic message seen before
+  kStale,              // keyed bus: sender clock further off than the allowed message age
+  kTooManySenders,     // keyed bus: the table of senders is full of fresh entries
+  kSeqJump,            // a frame whose sequence number jumps further than allowed
+  kSpoofedSession,     // a message for a session from another sender than its owner
   kCount,
 };
 inline constexpr int kNumDropReasons = static_cast<int>(DropReason::kCount);

@@ -1,13 +1,18 @@
 // ClientSession: one client's conversation with a SLAM server over any Transport.
 //
 // Start() opens the transport and says HELLO (with the camera and, for reproducible runs, the
-// FLAG_DETERMINISTIC flag); Send() stamps and publishes encoded frames; pose estimates are
-// matched to the frames by sequence number (latency = pose received - frame sent, wall
-// clock); map deltas keep a MapReplica current, a revision gap triggers a rate-limited
-// RESYNC_REQUEST. A change of server_instance in a message for our session (the server
-// restarted) or SESSION_ENDED from the server starts a new session (new id, HELLO, empty
-// replica) at the next Send(). Undecodable or invalid messages on any channel are counted and
-// ignored.
+// FLAG_DETERMINISTIC flag); Send() stamps and publishes encoded frames (sequence numbers
+// restart at 1 in every session); pose estimates are matched to the frames by sequence number
+// (latency = pose received - frame sent, both on this client's steady clock); map deltas keep
+// a MapReplica current, a revision gap triggers a rate-limited RESYNC_REQUEST.
+//
+// Trust: the session belongs to the server instance whose HELLO_ACK answered it. Poses, map
+// deltas, SESSION_ENDED and REJECTED from any other instance are counted
+// (foreign_server_messages) and ignored, so a stray publisher cannot feed or end the session
+// without knowing the instance (and, on a keyed bus, without the key). A server that stops
+// answering (no pose for unanswered_timeout_s while frames are outstanding, e.g. it restarted)
+// and SESSION_ENDED from the owning server start a new session (new id, HELLO, empty replica)
+// at the next Send(). Undecodable or invalid messages on any channel are counted and ignored.
 //
 // Thread-safety: Send(), the Wait*() calls and the accessors may be called from any thread;
 // messages arrive on the transport's thread. No lock is held while publishing.
@@ -46,15 +51,20 @@ struct ClientSessionOptions {
   double resync_min_interval_s = 0.25;
   // Seed for session ids (0: random).
   uint64_t session_seed = 0;
+  // With frames outstanding and no pose from the owning server for this long, the session is
+  // given up and a new one started at the next Send().
+  double unanswered_timeout_s = 3.0;
 };
 
 // What happened to one sent frame.
 struct FrameRecord {
-  int64_t seq = 0;
+  int64_t seq = 0;         // client-wide: records[seq - 1]
   int64_t session_id = 0;
+  int64_t wire_seq = 0;    // the sequence number in its session (what the server sees)
   int64_t capture_time_us = 0;
   std::optional<Pose3> ground_truth_world_from_camera;
   int64_t send_wall_us = 0;
+  int64_t send_steady_us = 0;  // this client's steady clock (latency)
   int num_features = 0;
   size_t encoded_bytes = 0;
   bool answered = false;  // a pose estimate arrived
@@ -68,9 +78,11 @@ struct FrameRecord {
 
 struct ClientCounters {
   int64_t sessions_started = 0;
-  int64_t server_restarts = 0;  // server_instance changed mid-session
+  int64_t server_restarts = 0;  // sessions given up: the server stopped answering
   int64_t sessions_ended_by_server = 0;
-  int64_t rejected = 0;  // REJECTED by the server
+  int64_t rejected = 0;  // REJECTED by the server (e.g. full)
+  int64_t acks = 0;      // HELLO_ACKs received for our sessions
+  int64_t foreign_server_messages = 0;  // for our session, from another server instance
   int64_t poses_received = 0;
   int64_t deltas_applied = 0;
   int64_t full_maps = 0;
@@ -79,6 +91,7 @@ struct ClientCounters {
   int64_t stats_received = 0;
   int64_t other_session_messages = 0;
   int64_t bad_messages = 0;  // failed to decode or validate, any channel
+  int64_t refused_by_transport = 0;  // failed authentication / replay checks (keyed bus)
 };
 
 class ClientSession {
@@ -109,8 +122,10 @@ class ClientSession {
   void OnPose(const pose_estimate_t& pose);
   void OnMap(const map_delta_t& delta);
   void OnSession(const session_control_t& message);
-  // Adopts `instance` for the current session; true when it differs from a known one.
-  bool NoteInstanceLocked(int64_t instance);
+  // True when `instance` owns the current session; counts the message as foreign otherwise.
+  bool FromOwnerLocked(int64_t instance);
+  // Marks the session for renewal when the server has not answered for too long.
+  void CheckAnsweredLocked(double now_s);
   void BeginSession();
   void PublishControl(int8_t type, int64_t session_id, int64_t last_revision);
 
@@ -128,6 +143,9 @@ class ClientSession {
   bool acked_ = false;
   bool new_session_pending_ = false;
   int64_t next_seq_ = 1;
+  int64_t session_first_seq_ = 1;  // client-wide seq of the session's first frame
+  double last_answer_s_ = 0.0;     // HELLO or the last answer of the owning server
+  bool outstanding_ = false;       // frames sent since that answer
   std::vector<FrameRecord> records_;  // records_[seq - 1]
   ClientCounters counters_;
   double last_resync_s_ = -1e9;

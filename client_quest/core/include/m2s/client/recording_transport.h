@@ -28,6 +28,7 @@ class RecordingTransport final : public Transport {
   Status Publish(const std::string& channel, const std::vector<uint8_t>& bytes) override;
   void Stop() override;
   std::string_view name() const override { return inner_->name(); }
+  int64_t refused_messages() const override { return inner_->refused_messages(); }
 
  private:
   const std::unique_ptr<Transport> inner_;

@@ -1,7 +1,9 @@
 // Transports: how encoded messages travel between the client and the server. Everything above
 // this interface (frame encoding, sessions, map replica) is the same for every transport.
 //
-//   LcmTransport: any LCM URL (udpm://...?ttl=0, memq://); its own thread handles LCM.
+//   LcmTransport: any LCM URL (udpm://...?ttl=0, memq://); its own thread handles LCM. With
+//     a bus key it seals what it publishes and hands the handler only messages that pass
+//     wire::BusOpener (authentic, not replayed, fresh); the others are counted by reason.
 //   OnDeviceTransport (on_device_transport.h): the server's session logic in-process.
 //
 // The handler is called from the transport's thread (LCM) or the server worker (on-device);
@@ -22,6 +24,7 @@
 #include <thread>
 #include <vector>
 
+#include "m2s/common/bus_auth.h"
 #include "m2s/common/status.h"
 
 namespace lcm {
@@ -43,22 +46,29 @@ class Transport {
   // Stops delivering; idempotent, done by the destructor too.
   virtual void Stop() = 0;
   virtual std::string_view name() const = 0;
+  // Messages refused before decoding (authentication, replay, freshness); 0 when the
+  // transport checks nothing.
+  virtual int64_t refused_messages() const { return 0; }
 };
 
 class LcmTransport final : public Transport {
  public:
-  explicit LcmTransport(std::string url);
+  explicit LcmTransport(std::string url, wire::BusSecurityOptions security = {});
   ~LcmTransport() override;
   Status Start(MessageHandler handler) override;
   Status Publish(const std::string& channel, const std::vector<uint8_t>& bytes) override;
   void Stop() override;
   std::string_view name() const override { return "lcm"; }
+  int64_t refused_messages() const override { return refused_.load(); }
   const std::string& url() const { return url_; }
 
  private:
   void OnRaw(const lcm::ReceiveBuffer* buffer, const std::string& channel);
 
   const std::string url_;
+  const wire::BusSealer sealer_;
+  wire::BusOpener opener_;
+  std::atomic<int64_t> refused_{0};
   std::unique_ptr<lcm::LCM> lcm_;
   MessageHandler handler_;
   std::mutex publish_mutex_;

@@ -2,7 +2,8 @@
 // (projector -> noise -> codec), sent over a transport (on-device or LCM) in real time (frames
 // the client cannot produce in time are skipped; the server's latest-wins queue skips the
 // frames SLAM cannot take) or, with `fast`, one frame at a time waiting for each pose
-// (deterministic). The outputs are written by WriteRunOutputs.
+// (deterministic). The outputs are written by WriteRunOutputs. A run that no server ever
+// answered (none listening, the server full, or every answer refused) is an error.
 //
 //   HeadlessOptions options;            // default scene, default trajectory, on-device
 //   options.fast = true;
@@ -13,6 +14,7 @@
 #include <optional>
 #include <string>
 
+#include "m2s/common/bus_auth.h"
 #include "m2s/common/feature_noise.h"
 #include "m2s/common/projector.h"
 #include "m2s/headless/run_outputs.h"
@@ -28,6 +30,7 @@ struct HeadlessOptions {
   bool fast = false;
   bool on_device = true;
   std::string lcm_url = wire::kDefaultLcmUrl;
+  wire::BusSecurityOptions bus;  // LCM only: key, encryption, replay checks
   std::string projector = "gpu";  // "gpu" (CPU fallback when EGL fails) or "cpu"
   ProjectorOptions projector_options;
   FeatureNoiseOptions noise;

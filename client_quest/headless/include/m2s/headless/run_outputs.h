@@ -5,18 +5,21 @@
 // OpenCV when no EGL display is available).
 //
 // Estimates are stamped with the frames' capture times, the ground-truth times, so the
-// evaluation associates them exactly. When the run spans several sessions (server restart),
-// the session with the most tracked frames is evaluated and written.
+// evaluation associates them exactly. When the run spans several sessions (the server ended
+// one, or stopped answering), the run's trajectory is every session's tracked frames
+// evaluated as one, and metrics.json also lists each session evaluated on its own.
 //
 //   RunInfo info{.projector = "gpu", .fps = 75};
 //   Expected<RunMetrics> m = WriteRunOutputs("out", records, replica.Snapshot(), &scene, info);
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "m2s/client/client_session.h"
+
 #include "m2s/client/map_replica.h"
 #include "m2s/common/scene.h"
 #include "m2s/common/status.h"
@@ -33,8 +36,22 @@ struct RunInfo {
   int64_t sessions = 1;
   int64_t server_restarts = 0;
   int64_t resync_requests = 0;
+  int64_t bus_refused = 0;              // refused by the bus checks (forged, replayed, stale)
+  int64_t foreign_server_messages = 0;  // for our session from another server instance
   double wall_s = 0.0;
   bool render_map = true;  // write map.png
+};
+
+// One client session of a run (a run has several when the server ended or stopped answering
+// one), evaluated in its own frame.
+struct SessionMetrics {
+  int64_t id = 0;
+  int64_t frames_sent = 0;
+  int64_t frames_processed = 0;
+  int64_t frames_tracked = 0;
+  int64_t frames_lost = 0;
+  double ate_rmse = -1.0;  // metres, Sim3-aligned; -1 when fewer than 3 tracked frames
+  std::optional<Sim3> world_from_estimate;
 };
 
 struct RunMetrics {
@@ -43,7 +60,9 @@ struct RunMetrics {
   int64_t frames_skipped = 0;    // never processed (skipped by the client or the server queue)
   int64_t frames_lost = 0;       // processed, state LOST
   int64_t frames_tracked = 0;    // processed, state OK or RELOCALIZED
-  double ate_rmse = -1.0;        // metres, Sim3-aligned; -1 when fewer than 3 tracked frames
+  // Metres: every tracked frame of every session, one Sim3 alignment (a run split over
+  // sessions in different frames shows here); -1 when fewer than 3 tracked frames.
+  double ate_rmse = -1.0;
   double ate_scale = 0.0;
   double map_rmse = -1.0;  // metres, map points aligned by the trajectory's Sim3
   double tracking_ms_p50 = 0.0, tracking_ms_p95 = 0.0;
@@ -56,6 +75,7 @@ struct RunMetrics {
   double fps = 0.0;
   std::string map_png;         // path, empty when not written
   std::string trajectory_png;  // path
+  std::vector<SessionMetrics> sessions;
 };
 
 Expected<RunMetrics> WriteRunOutputs(const std::string& out_dir,

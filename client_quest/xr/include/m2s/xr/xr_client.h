@@ -27,6 +27,7 @@
 #include "m2s/common/camera.h"
 #include "m2s/common/feature_noise.h"
 #include "m2s/common/projector.h"
+#include "m2s/common/bus_auth.h"
 #include "m2s/common/status.h"
 #include "m2s/common/wire_format.h"
 #include "m2s/server_app/session_manager.h"
@@ -49,6 +50,7 @@ struct XrClientOptions {
   Camera camera = Camera::FromHorizontalFov(640, 480, 90.0);
   bool on_device = true;
   std::string lcm_url = wire::kDefaultLcmUrl;
+  wire::BusSecurityOptions bus;   // LCM only: key ("key_file" in the config), encryption
   std::string projector = "gpu";  // "gpu" (CPU fallback when GLES 3.1 compute fails) or "cpu"
   ProjectorOptions projector_options;
   FeatureNoiseOptions noise;

@@ -3,6 +3,12 @@
 // sessions' poses and map deltas, ends timed-out sessions and publishes server_stats_t
 // periodically on M2S_STATS (also written to the log).
 //
+// With a bus key (options.bus.key) every message in and out goes through wire::BusOpener /
+// BusSealer (common/bus_auth.h): what fails authentication, replays and stale messages are
+// counted by reason and dropped before any decoding, and the server's messages carry its
+// server_instance as their sender id. Without a key the server says once, loudly, that the bus
+// is open.
+//
 // Thread-safety: Start() and Stop() from one controlling thread; Counters() from any thread.
 //
 //   LcmServer server(options);
@@ -17,6 +23,7 @@
 #include <string>
 #include <thread>
 
+#include "m2s/common/bus_auth.h"
 #include "m2s/common/status.h"
 #include "m2s/server_app/session_manager.h"
 
@@ -33,6 +40,8 @@ struct LcmServerOptions {
   double stats_period_s = 5.0;
   // Write the stats line to the log too.
   bool log_stats = true;
+  // Shared secret of the bus (none: open bus), payload encryption, replay checks.
+  wire::BusSecurityOptions bus;
   ServerOptions server;
 };
 
@@ -47,7 +56,10 @@ class LcmServer {
   // Ends every session and stops the IO thread. Idempotent.
   void Stop();
 
+  // The counters; after Stop() the final ones.
   ServerCounters Counters() const;
+  // Counters as JSON (drops by reason name), e.g. for m2s_server --stats-out.
+  std::string CountersJson() const;
   int64_t server_instance() const;
   SessionManager* manager() { return manager_.get(); }
 
@@ -55,14 +67,18 @@ class LcmServer {
   void IoLoop();
   void OnRaw(const lcm::ReceiveBuffer* buffer, const std::string& channel);
   void PublishStats();
+  void PublishSealed(const std::string& channel, const std::vector<uint8_t>& bytes);
 
   const LcmServerOptions options_;
+  wire::BusSealer sealer_;
+  wire::BusOpener opener_;
   const SystemFactory factory_;
   std::unique_ptr<lcm::LCM> lcm_;
   std::mutex publish_mutex_;
   std::unique_ptr<SessionManager> manager_;
   std::atomic<bool> stop_{false};
   std::thread io_thread_;
+  ServerCounters final_counters_;
 };
 
 }  // namespace m2s::server_app

@@ -19,6 +19,7 @@
 #pragma once
 
 #include <array>
+#include <chrono>
 #include <atomic>
 #include <condition_variable>
 #include <cstdint>
@@ -57,12 +58,18 @@ struct ServerOptions {
   bool synchronous = false;
   // When not empty, each session's map is saved there when it ends.
   std::string save_maps_dir;
+  // A frame's sequence number may exceed its session's last one (0 before the first frame) by
+  // at most this much (a stray frame with a huge seq must not freeze the session).
+  int64_t max_seq_jump = 1 << 16;
   // Ended session ids remembered (frames for them are dropped as kEndedSession).
   int max_ended_sessions = 4096;
   // At most one log line per drop reason per this period.
   double drop_log_period_s = 1.0;
   // Random id of this server instance (0: chosen at random).
   int64_t server_instance = 0;
+  // The clock of session activity and timeouts (empty: std::chrono::steady_clock); tests
+  // inject a manual one.
+  std::function<std::chrono::steady_clock::time_point()> clock;
 
   bool Check(std::string* why) const;
 };
@@ -95,8 +102,14 @@ class SessionManager {
   SessionManager& operator=(const SessionManager&) = delete;
 
   // Decodes, validates and routes one message received on `channel` (frame or session
-  // channel; other channels are ignored).
-  void HandleMessage(const std::string& channel, const void* data, size_t size);
+  // channel; other channels are ignored). `sender` is the authenticated bus sender
+  // (wire::BusOpener; 0 on an open bus or in-process): a session belongs to the sender that
+  // opened it, and frames or requests for it from another sender are dropped
+  // (kSpoofedSession).
+  void HandleMessage(const std::string& channel, const void* data, size_t size,
+                     uint64_t sender = 0);
+  // Counts a message the transport refused before decoding (authentication, replay).
+  void Drop(wire::DropReason reason, const std::string& detail);
   // Ends the sessions that timed out; call periodically (the LCM server does, every 100 ms).
   void Tick();
   // Ends every session (maps saved when asked), e.g. on SIGTERM. Idempotent.
@@ -109,17 +122,17 @@ class SessionManager {
   // One human-readable line of the counters (non-zero drop reasons only).
   std::string StatsLine() const;
   int64_t server_instance() const { return options_.server_instance; }
+  std::chrono::steady_clock::time_point Now() const;
   const ServerOptions& options() const { return options_; }
 
  private:
   friend class Session;
-  void HandleFrame(const void* data, size_t size);
-  void HandleSessionControl(const void* data, size_t size);
-  // Returns the session (created when needed); nullptr when refused (reason counted).
-  std::shared_ptr<Session> FindOrCreate(int64_t session_id, const Camera& camera, int32_t flags,
-                                        bool from_hello, wire::DropReason* refused);
+  void HandleFrame(const void* data, size_t size, uint64_t sender);
+  void HandleSessionControl(const void* data, size_t size, uint64_t sender);
+  // Returns the session (created when needed); nullptr when refused (reason set).
+  std::shared_ptr<Session> FindOrCreate(int64_t session_id, uint64_t sender, const Camera& camera,
+                                        int32_t flags, bool from_hello, wire::DropReason* refused);
   void EndSession(int64_t session_id, const std::string& reason);
-  void Drop(wire::DropReason reason, const std::string& detail);
   void Publish(const std::string& channel, std::vector<uint8_t> bytes);
   void RecordTrackingTime(double ms);
   void CountProcessed();

@@ -1,0 +1,156 @@
+// Whom the client session believes: only the server instance that acknowledged the session.
+// The test plays the server through a scripted transport and injects what a stray publisher
+// on the bus would send: poses, SESSION_ENDED and REJECTED from another instance.
+#include <chrono>
+#include <mutex>
+#include <thread>
+
+#include <gtest/gtest.h>
+
+#include "m2s/client/client_session.h"
+#include "m2s/server_app/messages.h"
+
+namespace m2s::client {
+namespace {
+
+constexpr int64_t kServer = 1000;
+constexpr int64_t kStranger = 2000;
+
+// Acknowledges every HELLO as server kServer and keeps what the client published.
+class ScriptedTransport final : public Transport {
+ public:
+  Status Start(MessageHandler handler) override {
+    handler_ = std::move(handler);
+    return Status::Ok();
+  }
+  Status Publish(const std::string& channel, const std::vector<uint8_t>& bytes) override {
+    std::optional<session_control_t> hello;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (channel == wire::kFrameChannel) {
+        frames.push_back(*wire::DecodeFeatureFrame(bytes.data(), bytes.size(), {}));
+      } else if (channel == wire::kSessionChannel) {
+        auto m = wire::DecodeSessionControl(bytes.data(), bytes.size());
+        if (m->type == session_control_t::HELLO) {
+          ++hellos;
+          hello = *m;
+        }
+      }
+    }
+    if (hello) {
+      Deliver(wire::kSessionChannel,
+              wire::Encode(server_app::MakeSessionMessage(session_control_t::HELLO_ACK,
+                                                          hello->session_id, kServer)));
+    }
+    return Status::Ok();
+  }
+  void Stop() override {}
+  std::string_view name() const override { return "scripted"; }
+
+  void Deliver(const std::string& channel, const std::vector<uint8_t>& bytes) {
+    handler_(channel, bytes.data(), bytes.size());
+  }
+  void Pose(int64_t instance, int64_t session, int64_t seq) {
+    pose_estimate_t p{};
+    p.version = pose_estimate_t::VERSION;
+    p.session_id = session;
+    p.server_instance = instance;
+    p.seq = seq;
+    p.frame_send_wall_us = 0;  // a forger's echo must not decide the latency
+    p.state = pose_estimate_t::STATE_OK;
+    p.world_from_camera = wire::ToMessage(Pose3());
+    Deliver(wire::kPoseChannel, wire::Encode(p));
+  }
+  void Control(int8_t type, int64_t instance, int64_t session) {
+    Deliver(wire::kSessionChannel,
+            wire::Encode(server_app::MakeSessionMessage(type, session, instance)));
+  }
+
+  std::mutex mutex_;
+  std::vector<wire::FeatureFrame> frames;
+  int hellos = 0;
+
+ private:
+  MessageHandler handler_;
+};
+
+wire::FeatureFrame Frame(int k) {
+  wire::FeatureFrame frame;
+  frame.capture_time_us = k * 10000;
+  frame.features = {{static_cast<VertexId>(k), {5.f, 5.f}}};
+  return frame;
+}
+
+TEST(ClientSessionTrustTest, MessagesFromAnotherInstanceChangeNothing) {
+  ScriptedTransport transport;
+  ClientSession session(&transport, {});
+  ASSERT_TRUE(session.Start().ok());
+  ASSERT_EQ(session.server_instance(), kServer);
+  const int64_t id = session.session_id();
+  ASSERT_TRUE(session.Send(Frame(0)).ok());
+  transport.Pose(kStranger, id, 1);                            // forged pose
+  transport.Control(session_control_t::SESSION_ENDED, kStranger, id);  // forged end
+  transport.Control(session_control_t::REJECTED, kServer, id);  // a refusal after the ack
+  EXPECT_FALSE(session.Records()[0].answered);
+  ASSERT_TRUE(session.Send(Frame(1)).ok());
+  EXPECT_EQ(session.session_id(), id);  // the session goes on
+  transport.Pose(kServer, id, 1);
+  transport.Pose(kServer, id, 2);
+  const auto records = session.Records();
+  ASSERT_TRUE(records[0].answered && records[1].answered);
+  EXPECT_GE(records[0].latency_ms, 0.0);
+  EXPECT_LT(records[0].latency_ms, 60e3);  // this client's clock, not the echoed 1970 stamp
+  const ClientCounters c = session.Counters();
+  EXPECT_EQ(c.foreign_server_messages, 2);
+  EXPECT_EQ(c.sessions_started, 1);
+  EXPECT_EQ(c.sessions_ended_by_server, 0);
+  EXPECT_EQ(c.rejected, 0);
+  EXPECT_EQ(c.poses_received, 2);
+}
+
+TEST(ClientSessionTrustTest, SequenceNumbersRestartInEverySession) {
+  ScriptedTransport transport;
+  ClientSession session(&transport, {});
+  ASSERT_TRUE(session.Start().ok());
+  const int64_t first = session.session_id();
+  ASSERT_TRUE(session.Send(Frame(0)).ok());
+  ASSERT_TRUE(session.Send(Frame(1)).ok());
+  transport.Control(session_control_t::SESSION_ENDED, kServer, first);  // by its owner
+  auto third = session.Send(Frame(2));
+  ASSERT_TRUE(third.ok());
+  EXPECT_EQ(*third, 3);  // client-wide record number
+  const int64_t second = session.session_id();
+  EXPECT_NE(second, first);
+  ASSERT_EQ(transport.frames.size(), 3u);
+  EXPECT_EQ(transport.frames[1].seq, 2);
+  EXPECT_EQ(transport.frames[2].seq, 1);  // what the new session's server sees
+  EXPECT_EQ(transport.frames[2].session_id, second);
+  transport.Pose(kServer, second, 1);
+  const auto records = session.Records();
+  EXPECT_TRUE(records[2].answered);
+  EXPECT_FALSE(records[0].answered);
+  EXPECT_EQ(records[2].wire_seq, 1);
+  EXPECT_EQ(session.Counters().sessions_ended_by_server, 1);
+}
+
+TEST(ClientSessionTrustTest, ASessionTheServerStopsAnsweringIsRenewed) {
+  ScriptedTransport transport;
+  ClientSessionOptions options;
+  options.unanswered_timeout_s = 0.05;
+  ClientSession session(&transport, options);
+  ASSERT_TRUE(session.Start().ok());
+  const int64_t first = session.session_id();
+  ASSERT_TRUE(session.Send(Frame(0)).ok());
+  transport.Pose(kServer, first, 1);
+  ASSERT_TRUE(session.Send(Frame(1)).ok());  // never answered
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));  // twice the timeout
+  ASSERT_TRUE(session.Send(Frame(2)).ok());
+  EXPECT_NE(session.session_id(), first);
+  EXPECT_EQ(transport.hellos, 2);
+  const ClientCounters c = session.Counters();
+  EXPECT_EQ(c.server_restarts, 1);
+  EXPECT_EQ(c.sessions_started, 2);
+}
+
+}  // namespace
+}  // namespace m2s::client
