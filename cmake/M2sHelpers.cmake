@@ -30,15 +30,21 @@ function(m2s_add_executable name)
   target_link_libraries(${name} PRIVATE m2s::options ${ARG_DEPS})
 endfunction()
 
-# m2s_add_test(NAME SOURCES ... [DEPS ...]): one gtest executable, discovered by ctest.
+# m2s_add_test(NAME SOURCES ... [DEPS ...] [LABELS ...]): one gtest executable, discovered by
+# ctest. Labels: `threads` (runs threads: the ThreadSanitizer suite), `realtime` (asserts on
+# wall-clock behaviour: left out of the sanitizer suites, whose slowdown it would measure).
 function(m2s_add_test name)
-  cmake_parse_arguments(ARG "" "" "SOURCES;DEPS" ${ARGN})
+  cmake_parse_arguments(ARG "" "" "SOURCES;DEPS;LABELS" ${ARGN})
   add_executable(${name} ${ARG_SOURCES})
   set_target_properties(${name} PROPERTIES RUNTIME_OUTPUT_DIRECTORY ${CMAKE_BINARY_DIR}/bin/tests)
   target_link_libraries(${name} PRIVATE m2s::options ${ARG_DEPS} GTest::gtest GTest::gtest_main)
   target_compile_definitions(${name} PRIVATE
     M2S_SOURCE_DIR="${PROJECT_SOURCE_DIR}" M2S_BINARY_DIR="${CMAKE_BINARY_DIR}")
-  gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60 PROPERTIES TIMEOUT 600)
+  set(_props TIMEOUT 600)
+  if(ARG_LABELS)
+    list(APPEND _props LABELS "${ARG_LABELS}")
+  endif()
+  gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60 PROPERTIES ${_props})
 endfunction()
 
 # m2s_add_benchmark(NAME SOURCES ... [DEPS ...]): built, never run by ctest.

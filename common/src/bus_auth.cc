@@ -152,7 +152,8 @@ std::vector<uint8_t> BusSealer::Seal(std::string_view channel, const uint8_t* pa
   } else {
     if (size > 0) std::memcpy(body, payload, size);
     ad.insert(ad.end(), payload, payload + size);
-    crypto_aead_xchacha20poly1305_ietf_encrypt_detached(nullptr, tag, nullptr, nullptr, 0,
+    uint8_t no_ciphertext = 0;  // libsodium wants a valid pointer even for 0 bytes
+    crypto_aead_xchacha20poly1305_ietf_encrypt_detached(&no_ciphertext, tag, nullptr, nullptr, 0,
                                                         ad.data(), ad.size(), nullptr,
                                                         nonce.data(), key_->bytes.data());
   }
@@ -179,7 +180,6 @@ BusOpener::BusOpener(std::optional<BusKey> key, BusOpenerOptions options)
 
 DecodeResult<OpenedMessage> BusOpener::Open(std::string_view channel, const uint8_t* data,
                                             size_t size, int64_t now_wall_us) {
-  using R = DecodeResult<OpenedMessage>;
   OpenedMessage opened;
   if (!key_) {
     opened.data = data;
@@ -212,8 +212,9 @@ DecodeResult<OpenedMessage> BusOpener::Open(std::string_view channel, const uint
         nonce.data(), key_->bytes.data());
   } else {
     ad.insert(ad.end(), body, body + body_size);
+    const uint8_t no_ciphertext = 0;  // libsodium wants a valid pointer even for 0 bytes
     verified = crypto_aead_xchacha20poly1305_ietf_decrypt_detached(
-        nullptr, nullptr, nullptr, 0, tag, ad.data(), ad.size(), nonce.data(),
+        nullptr, nullptr, &no_ciphertext, 0, tag, ad.data(), ad.size(), nonce.data(),
         key_->bytes.data());
   }
   if (verified != 0 || sender == 0 || counter == 0) {
@@ -222,7 +223,8 @@ DecodeResult<OpenedMessage> BusOpener::Open(std::string_view channel, const uint
                                    " fails authentication (forged, corrupt, or another key)");
   }
   if (options_.max_age_s > 0) {
-    const double age_s = std::abs(static_cast<double>(now_wall_us - sent_us)) * 1e-6;
+    const double age_s =
+        std::abs(static_cast<double>(now_wall_us) - static_cast<double>(sent_us)) * 1e-6;
     if (age_s > options_.max_age_s) {
       return Fail<OpenedMessage>(DropReason::kStale, "message on " + std::string(channel) +
                                                          " sent " + std::to_string(age_s) +

@@ -6,6 +6,7 @@
 #include <cstring>
 #include <exception>
 #include <sstream>
+#include <string_view>
 
 namespace m2s::wire {
 namespace {
@@ -15,45 +16,95 @@ constexpr int kHashBytes = 8;
 constexpr int kPoseBytes = 7 * 8;
 constexpr int kCameraBytes = 2 * 4 + 6 * 8;
 constexpr int kKeyframeBytes = 4 + 8 + kPoseBytes;
+// An encoded string: int32 length (counting the NUL), at least the NUL.
+constexpr int kMinStringBytes = 4 + 1;
 
-// Big-endian reader over untrusted bytes; every read is bounds-checked.
+// Walks the byte layout of a message over untrusted bytes, big-endian. Every step is checked
+// against the bytes that remain; the first failure is kept as a one-line message.
 class Reader {
  public:
   Reader(const void* data, size_t size) : data_(static_cast<const uint8_t*>(data)), size_(size) {}
+
   bool Skip(size_t n) {
-    if (n > size_ - pos_) return false;
+    if (n > remaining()) {
+      return Fail("needs " + std::to_string(n) + " bytes, " + std::to_string(remaining()) +
+                  " left");
+    }
     pos_ += n;
     return true;
   }
   bool ReadI32(int32_t* value) {
-    if (4 > size_ - pos_) return false;
-    uint32_t v = 0;
-    for (int i = 0; i < 4; ++i) v = (v << 8) | data_[pos_ + i];
-    pos_ += 4;
-    *value = static_cast<int32_t>(v);
+    uint64_t v = 0;
+    if (!ReadBigEndian(4, &v)) return false;
+    *value = static_cast<int32_t>(static_cast<uint32_t>(v));
     return true;
   }
   bool ReadI64(int64_t* value) {
-    if (8 > size_ - pos_) return false;
     uint64_t v = 0;
-    for (int i = 0; i < 8; ++i) v = (v << 8) | data_[pos_ + i];
-    pos_ += 8;
+    if (!ReadBigEndian(8, &v)) return false;
     *value = static_cast<int64_t>(v);
     return true;
   }
-  // Reads a count and skips count * element_bytes; false when the bytes are not there.
-  bool SkipArray(size_t element_bytes, int32_t* count) {
-    if (!ReadI32(count) || *count < 0) return false;
-    return static_cast<uint64_t>(*count) * element_bytes <= size_ - pos_ &&
-           Skip(static_cast<size_t>(*count) * element_bytes);
+  // Reads an array count; fails unless 0 <= count and count * min_element_bytes bytes remain.
+  bool ReadCount(size_t min_element_bytes, int32_t* count) {
+    const size_t at = pos_;
+    if (!ReadI32(count)) return false;
+    if (*count < 0 || static_cast<uint64_t>(*count) * min_element_bytes > remaining()) {
+      return FailAt(at, "count " + std::to_string(*count) + " with " + std::to_string(remaining()) +
+                            " bytes left");
+    }
+    return true;
   }
-  size_t pos() const { return pos_; }
+  // Reads a count and skips count * element_bytes.
+  bool SkipArray(size_t element_bytes, int32_t* count) {
+    return ReadCount(element_bytes, count) && Skip(static_cast<size_t>(*count) * element_bytes);
+  }
+  // Skips a string: int32 length counting the terminating NUL (1 <= length <= what remains),
+  // the characters (none of them NUL), the NUL.
+  bool SkipString() {
+    const size_t at = pos_;
+    int32_t length = 0;
+    if (!ReadI32(&length)) return false;
+    if (length < 1 || static_cast<uint64_t>(length) > remaining()) {
+      return FailAt(at, "string length " + std::to_string(length) + " with " +
+                            std::to_string(remaining()) + " bytes left");
+    }
+    // The NUL ends the string and nothing before it is one (lcm's encoder writes C strings).
+    const void* nul = std::memchr(data_ + pos_, 0, static_cast<size_t>(length));
+    if (nul != data_ + pos_ + length - 1) return FailAt(at, "string not NUL-terminated");
+    pos_ += static_cast<size_t>(length);
+    return true;
+  }
+  bool AtEnd() { return remaining() == 0 || Fail(std::to_string(remaining()) + " trailing bytes"); }
+  // Records a failure other than the layout's.
+  bool Fail(DropReason reason, std::string message) {
+    reason_ = reason;
+    error_ = std::move(message);
+    return false;
+  }
+
   size_t remaining() const { return size_ - pos_; }
+  DropReason reason() const { return reason_; }
+  const std::string& error() const { return error_; }
 
  private:
+  bool ReadBigEndian(int bytes, uint64_t* value) {
+    if (!Skip(static_cast<size_t>(bytes))) return false;
+    uint64_t v = 0;
+    for (size_t i = pos_ - static_cast<size_t>(bytes); i < pos_; ++i) v = (v << 8) | data_[i];
+    *value = v;
+    return true;
+  }
+  bool Fail(const std::string& what) { return FailAt(pos_, what); }
+  bool FailAt(size_t at, const std::string& what) {
+    return Fail(DropReason::kBadBytes, "at byte " + std::to_string(at) + ": " + what);
+  }
+
   const uint8_t* data_;
   size_t size_;
   size_t pos_ = 0;
+  DropReason reason_ = DropReason::kBadBytes;
+  std::string error_;
 };
 
 template <typename T>
@@ -61,22 +112,28 @@ DecodeResult<T> Fail(DropReason reason, const std::string& message) {
   return DecodeResult<T>::Error(reason, message);
 }
 
-// Checks the type hash, then decodes with the generated code (after the caller has checked
-// the counts against the size, so nothing large is allocated).
-template <typename Message>
-DecodeResult<Message> DecodeChecked(const void* data, size_t size) {
+// Checks the type hash, then walks the byte layout with `layout(Reader*)` (the bytes after the
+// fingerprint; true when every length and count fits and nothing is left over), and only then
+// decodes with the generated code: lcm-gen's decoders trust lengths (a string length of
+// INT32_MIN reads out of bounds) and size arrays by counts before reading them.
+template <typename Message, typename Layout>
+DecodeResult<Message> DecodeChecked(const void* data, size_t size, Layout&& layout) {
+  const std::string_view name = Message::getTypeName();  // strings built on failure only
   Reader reader(data, size);
   int64_t hash = 0;
   if (!reader.ReadI64(&hash)) {
-    return Fail<Message>(DropReason::kBadBytes, std::string(Message::getTypeName()) +
-                                                    ": message shorter than its fingerprint");
+    return Fail<Message>(DropReason::kBadBytes,
+                         std::string(name) + ": message shorter than its fingerprint");
   }
   if (hash != Message::getHash()) {
     return Fail<Message>(DropReason::kWrongFingerprint,
-                         std::string("fingerprint is not that of ") + Message::getTypeName());
+                         "fingerprint is not that of " + std::string(name));
   }
   if (size > static_cast<size_t>(INT32_MAX)) {
-    return Fail<Message>(DropReason::kBadBytes, "message larger than 2 GiB");
+    return Fail<Message>(DropReason::kBadBytes, std::string(name) + ": message larger than 2 GiB");
+  }
+  if (!layout(&reader) || !reader.AtEnd()) {
+    return Fail<Message>(reader.reason(), std::string(name) + ": " + reader.error());
   }
   Message message;
   int consumed = -1;
@@ -85,19 +142,12 @@ DecodeResult<Message> DecodeChecked(const void* data, size_t size) {
   } catch (const std::exception&) {
     consumed = -1;
   }
-  if (consumed < 0) {
-    return Fail<Message>(DropReason::kBadBytes,
-                         std::string(Message::getTypeName()) + ": malformed bytes");
-  }
-  if (static_cast<size_t>(consumed) != size) {
-    return Fail<Message>(DropReason::kBadBytes, std::string(Message::getTypeName()) + ": " +
-                                                    std::to_string(size - consumed) +
-                                                    " trailing bytes");
+  if (consumed < 0 || static_cast<size_t>(consumed) != size) {
+    return Fail<Message>(DropReason::kBadBytes, std::string(name) + ": malformed bytes");
   }
   if (message.version != Message::VERSION) {
-    return Fail<Message>(
-        DropReason::kBadVersion,
-        std::string(Message::getTypeName()) + ": version " + std::to_string(message.version));
+    return Fail<Message>(DropReason::kBadVersion,
+                         std::string(name) + ": version " + std::to_string(message.version));
   }
   return message;
 }
@@ -145,6 +195,18 @@ const char* ToString(DropReason reason) {
       return "camera_changed";
     case DropReason::kBadSessionMessage:
       return "bad_session_message";
+    case DropReason::kNotAuthenticated:
+      return "not_authenticated";
+    case DropReason::kReplayed:
+      return "replayed";
+    case DropReason::kStale:
+      return "stale";
+    case DropReason::kTooManySenders:
+      return "too_many_senders";
+    case DropReason::kSeqJump:
+      return "seq_jump";
+    case DropReason::kSpoofedSession:
+      return "spoofed_session";
     case DropReason::kCount:
       break;
   }
@@ -199,7 +261,12 @@ DecodeResult<Pose3> FromMessage(const pose_t& m) {
     return Fail<Pose3>(DropReason::kNonFinite, "pose has a non-finite value");
   }
   const Eigen::Quaterniond q(m.q[0], m.q[1], m.q[2], m.q[3]);
-  if (!(q.norm() > 1e-6)) return Fail<Pose3>(DropReason::kBadBytes, "pose quaternion is zero");
+  const double norm = q.norm();
+  if (!(norm > 1e-6)) return Fail<Pose3>(DropReason::kBadBytes, "pose quaternion is zero");
+  // A norm that overflows would normalise to a zero quaternion.
+  if (!std::isfinite(norm)) {
+    return Fail<Pose3>(DropReason::kNonFinite, "pose quaternion norm is not finite");
+  }
   return Pose3(q, Eigen::Vector3d(m.t[0], m.t[1], m.t[2]));
 }
 
@@ -324,32 +391,26 @@ size_t FeatureFrameEncodedSize(size_t num_features) {
 DecodeResult<FeatureFrame> DecodeFeatureFrame(const void* data, size_t size,
                                               const FrameLimits& limits) {
   using R = DecodeResult<FeatureFrame>;
-  Reader reader(data, size);
-  int32_t count = 0;
-  int64_t hash = 0;
-  if (!reader.ReadI64(&hash)) return R::Error(DropReason::kBadBytes, "frame: too short");
-  if (hash != feature_frame_t::getHash()) {
-    return R::Error(DropReason::kWrongFingerprint, "fingerprint is not that of feature_frame_t");
-  }
-  if (!reader.Skip(2 + 4 * 8 + kCameraBytes + 1) || !reader.ReadI32(&count)) {
-    return R::Error(DropReason::kBadBytes, "frame: too short");
-  }
-  if (count < 0 || FeatureFrameEncodedSize(static_cast<size_t>(count)) != size) {
-    return R::Error(DropReason::kBadBytes, "frame: num_features " + std::to_string(count) +
-                                               " inconsistent with " + std::to_string(size) +
-                                               " bytes");
-  }
-  if (count > limits.max_features) {
-    return R::Error(DropReason::kTooManyFeatures, std::to_string(count) + " features > max " +
-                                                      std::to_string(limits.max_features));
-  }
-  auto message = DecodeChecked<feature_frame_t>(data, size);
+  auto message = DecodeChecked<feature_frame_t>(data, size, [&limits](Reader* r) {
+    int32_t count = 0;
+    if (!r->Skip(2 + 4 * 8 + kCameraBytes + 1) || !r->SkipArray(4 + 2 + 2, &count) ||
+        !r->Skip(1 + kPoseBytes) || !r->AtEnd()) {
+      return false;
+    }
+    return count <= limits.max_features ||
+           r->Fail(DropReason::kTooManyFeatures, std::to_string(count) + " features > max " +
+                                                     std::to_string(limits.max_features));
+  });
   if (!message) return R::Error(message.reason(), message.error());
   return FromMessage(*message, limits);
 }
 
 DecodeResult<session_control_t> DecodeSessionControl(const void* data, size_t size) {
-  auto m = DecodeChecked<session_control_t>(data, size);
+  auto m = DecodeChecked<session_control_t>(data, size, [](Reader* r) {
+    // version, type, 4 int64, client_name, reason, camera, flags.
+    return r->Skip(2 + 1 + 4 * 8) && r->SkipString() && r->SkipString() &&
+           r->Skip(kCameraBytes + 4);
+  });
   if (!m) return m;
   if (m->type < session_control_t::HELLO || m->type > session_control_t::REJECTED) {
     return Fail<session_control_t>(DropReason::kBadSessionMessage,
@@ -363,7 +424,10 @@ DecodeResult<session_control_t> DecodeSessionControl(const void* data, size_t si
 }
 
 DecodeResult<pose_estimate_t> DecodePoseEstimate(const void* data, size_t size) {
-  auto m = DecodeChecked<pose_estimate_t>(data, size);
+  auto m = DecodeChecked<pose_estimate_t>(data, size, [](Reader* r) {
+    // version, 5 int64, state, pose, 2 int32, keyframe_created, tracking_ms, map_revision.
+    return r->Skip(2 + 5 * 8 + 1 + kPoseBytes + 2 * 4 + 1 + 4 + 8);
+  });
   if (!m) return m;
   if (!AllFinite(m->world_from_camera.t, 3) || !AllFinite(m->world_from_camera.q, 4)) {
     return Fail<pose_estimate_t>(DropReason::kNonFinite, "pose estimate is not finite");
@@ -372,13 +436,12 @@ DecodeResult<pose_estimate_t> DecodePoseEstimate(const void* data, size_t size) 
 }
 
 DecodeResult<map_delta_t> DecodeMapDelta(const void* data, size_t size) {
-  Reader reader(data, size);
-  int32_t n = 0;
-  if (!reader.Skip(kHashBytes + 2 + 4 * 8 + 1) || !reader.SkipArray(kKeyframeBytes, &n) ||
-      !reader.SkipArray(4, &n) || !reader.SkipArray(4 + 12, &n) || !reader.SkipArray(4, &n)) {
-    return Fail<map_delta_t>(DropReason::kBadBytes, "map delta: counts inconsistent with size");
-  }
-  auto m = DecodeChecked<map_delta_t>(data, size);
+  auto m = DecodeChecked<map_delta_t>(data, size, [](Reader* r) {
+    // version, 4 int64, full; keyframes, removed keyframes, points (id + xyz), removed points.
+    int32_t n = 0;
+    return r->Skip(2 + 4 * 8 + 1) && r->SkipArray(kKeyframeBytes, &n) && r->SkipArray(4, &n) &&
+           r->SkipArray(4 + 3 * 4, &n) && r->SkipArray(4, &n);
+  });
   if (!m) return m;
   for (const keyframe_t& kf : m->keyframes) {
     if (!AllFinite(kf.world_from_camera.t, 3) || !AllFinite(kf.world_from_camera.q, 4)) {
@@ -394,16 +457,15 @@ DecodeResult<map_delta_t> DecodeMapDelta(const void* data, size_t size) {
 }
 
 DecodeResult<server_stats_t> DecodeServerStats(const void* data, size_t size) {
-  Reader reader(data, size);
-  int32_t n = 0;
-  bool ok = reader.Skip(kHashBytes + 2 + 8 + 8 + 4 + 3 * 8) && reader.ReadI32(&n) && n >= 0 &&
-            static_cast<uint64_t>(n) * 13 <= reader.remaining();
-  for (int32_t i = 0; ok && i < n; ++i) {
-    int32_t len = 0;
-    ok = reader.ReadI32(&len) && len >= 1 && reader.Skip(static_cast<size_t>(len));
-  }
-  if (!ok) return Fail<server_stats_t>(DropReason::kBadBytes, "stats: counts inconsistent");
-  return DecodeChecked<server_stats_t>(data, size);
+  return DecodeChecked<server_stats_t>(data, size, [](Reader* r) {
+    // version, 2 int64, int32, 3 int64; num_drop_reasons strings then as many int64; 2 floats.
+    int32_t n = 0;
+    if (!r->Skip(2 + 2 * 8 + 4 + 3 * 8) || !r->ReadCount(kMinStringBytes + 8, &n)) return false;
+    for (int32_t i = 0; i < n; ++i) {
+      if (!r->SkipString()) return false;
+    }
+    return r->Skip(static_cast<size_t>(n) * 8 + 2 * 4);
+  });
 }
 
 int64_t WallClockMicros() {

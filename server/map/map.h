@@ -13,6 +13,7 @@
 //   slam::MapDelta delta = map.TakeDelta();
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <mutex>
 #include <shared_mutex>
@@ -75,11 +76,16 @@ class Map {
   // Versioned binary file: camera, keyframes (with all their features), points with observers.
   Status Save(const std::string& path, const Camera& camera) const;
   // Replaces the map with the file's content; fails (map untouched) on a bad or truncated file
-  // or when the file's camera differs from `camera`.
+  // or when the file's camera differs from `camera`. Every count in the file is checked against
+  // the bytes that remain before anything is allocated for it.
   Status Load(const std::string& path, const Camera& camera);
+  // The same for the bytes of a map file in memory.
+  Status LoadFromBytes(const void* data, size_t size, const Camera& camera);
 
  private:
   MapDelta MakeDeltaLocked(bool full) const;
+  // Replaces the map with loaded data (the next delta is full).
+  void Install(MapData data, KeyframeId next_id);
 
   mutable std::shared_mutex mutex_;
   MapData data_;

@@ -10,8 +10,12 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
+#include <string>
 #include <type_traits>
+#include <utility>
+#include <vector>
 
 #include "map/map.h"
 
@@ -21,8 +25,14 @@ namespace {
 constexpr char kMagic[8] = {'M', '2', 'S', 'M', 'A', 'P', '0', '1'};
 constexpr char kEndMagic[8] = {'M', '2', 'S', 'E', 'N', 'D', '0', '1'};
 constexpr uint32_t kVersion = 1;
-// Sanity bounds: a corrupt count must not make us allocate without limit.
-constexpr uint64_t kMaxCount = uint64_t{1} << 28;
+// The fewest bytes each counted element takes in the file: a count is checked against them
+// and the bytes that remain before anything is allocated for it.
+constexpr size_t kPoseFileBytes = 7 * 8;
+constexpr size_t kMinKeyframeBytes = 4 + 8 + 8 + kPoseFileBytes + 8;
+constexpr size_t kFeatureBytes = 4 + 8 + 8;
+constexpr size_t kMinPointBytes = 4 + 3 * 8 + 4 + 8;
+constexpr size_t kObserverBytes = 4;
+constexpr size_t kLinkBytes = 4 + 4 + kPoseFileBytes;
 
 class Writer {
  public:
@@ -42,30 +52,162 @@ class Writer {
   std::ofstream* out_;
 };
 
+// Reads the file's fields from a byte range; every read is checked against what remains.
 class Reader {
  public:
-  explicit Reader(std::ifstream* in) : in_(in) {}
+  Reader(const void* data, size_t size) : data_(static_cast<const uint8_t*>(data)), size_(size) {}
   template <typename T>
   bool Get(T* v) {
     static_assert(std::is_trivially_copyable_v<T>);
-    in_->read(reinterpret_cast<char*>(v), sizeof(T));
-    return static_cast<bool>(*in_);
+    if (sizeof(T) > remaining()) return false;
+    std::memcpy(v, data_ + pos_, sizeof(T));
+    pos_ += sizeof(T);
+    return true;
   }
-  bool GetCount(uint64_t* n) { return Get(n) && *n <= kMaxCount; }
+  // A count of elements taking at least `min_element_bytes` each; fails (saying why in `error`)
+  // when it is missing or more than the bytes that remain can hold.
+  bool GetCount(const char* what, size_t min_element_bytes, uint64_t* n, std::string* error) {
+    if (!Get(n)) {
+      *error = std::string("truncated ") + what + " count";
+      return false;
+    }
+    if (*n > remaining() / min_element_bytes) {
+      *error = std::string("truncated or corrupt ") + what + " count " + std::to_string(*n) +
+               " (at least " + std::to_string(min_element_bytes) + " bytes each, " +
+               std::to_string(remaining()) + " left)";
+      return false;
+    }
+    return true;
+  }
   bool GetPose(Pose3* p) {
     double v[7];
     for (double& x : v) {
       if (!Get(&x) || !std::isfinite(x)) return false;
     }
     const Eigen::Quaterniond q(v[3], v[0], v[1], v[2]);
-    if (q.norm() < 1e-6) return false;
+    const double norm = q.norm();
+    if (!(norm >= 1e-6) || !std::isfinite(norm)) return false;
     *p = Pose3(q, Eigen::Vector3d(v[4], v[5], v[6]));
     return true;
   }
+  bool GetMagic(const char (&magic)[8]) {
+    char read[8];
+    return Get(&read) && std::memcmp(read, magic, sizeof(read)) == 0;
+  }
+  size_t remaining() const { return size_ - pos_; }
 
  private:
-  std::ifstream* in_;
+  const uint8_t* data_;
+  size_t size_;
+  size_t pos_ = 0;
 };
+
+// The content of a map file, checked; `error` says what is wrong when it is not empty.
+struct ParsedMap {
+  MapData data;
+  KeyframeId next_id = 0;
+  std::string error;
+};
+
+ParsedMap Fail(std::string why) {
+  ParsedMap parsed;
+  parsed.error = std::move(why);
+  return parsed;
+}
+
+ParsedMap ParseMapFile(const void* bytes, size_t size, const Camera& camera) {
+  Reader r(bytes, size);
+  if (!r.GetMagic(kMagic)) return Fail("not a Mesh2SLAM map");
+  uint32_t version = 0;
+  if (!r.Get(&version)) return Fail("truncated header");
+  if (version != kVersion) {
+    return Fail("unsupported version " + std::to_string(version) + " (expected " +
+                std::to_string(kVersion) + ")");
+  }
+  int32_t width = 0, height = 0;
+  double k[4];
+  if (!r.Get(&width) || !r.Get(&height) || !r.Get(&k[0]) || !r.Get(&k[1]) || !r.Get(&k[2]) ||
+      !r.Get(&k[3])) {
+    return Fail("truncated camera");
+  }
+  const double tol = 1e-9;
+  if (width != camera.width || height != camera.height || !(std::abs(k[0] - camera.fx) <= tol) ||
+      !(std::abs(k[1] - camera.fy) <= tol) || !(std::abs(k[2] - camera.cx) <= tol) ||
+      !(std::abs(k[3] - camera.cy) <= tol)) {
+    return Fail("its camera differs from the system's camera");
+  }
+  ParsedMap parsed;
+  MapData& data = parsed.data;
+  uint32_t next_id = 0;
+  if (!r.Get(&next_id)) return Fail("truncated header");
+  parsed.next_id = next_id;
+
+  uint64_t n = 0;
+  std::string why;
+  if (!r.GetCount("keyframe", kMinKeyframeBytes, &n, &why)) return Fail(why);
+  for (uint64_t i = 0; i < n; ++i) {
+    Keyframe kf;
+    uint32_t id = 0;
+    uint64_t nf = 0;
+    if (!r.Get(&id) || !r.Get(&kf.seq) || !r.Get(&kf.timestamp) ||
+        !r.GetPose(&kf.world_from_camera)) {
+      return Fail("truncated keyframe or invalid keyframe pose");
+    }
+    if (!r.GetCount("feature", kFeatureBytes, &nf, &why)) return Fail(why);
+    if (!std::isfinite(kf.timestamp)) {
+      return Fail("keyframe " + std::to_string(id) + " has a non-finite time");
+    }
+    kf.id = id;
+    if (id >= next_id || data.keyframe(id) != nullptr) return Fail("inconsistent keyframe ids");
+    kf.ids.resize(nf);
+    kf.uvs.resize(nf);
+    for (uint64_t f = 0; f < nf; ++f) {
+      uint32_t vid = 0;
+      double u = 0, v = 0;
+      if (!r.Get(&vid) || !r.Get(&u) || !r.Get(&v)) return Fail("truncated keyframe features");
+      if (f > 0 && vid <= kf.ids[f - 1]) return Fail("keyframe features not sorted");
+      if (!std::isfinite(u) || !std::isfinite(v)) return Fail("non-finite keyframe feature");
+      kf.ids[f] = vid;
+      kf.uvs[f] = Eigen::Vector2d(u, v);
+    }
+    data.AddKeyframe(std::move(kf));
+  }
+  if (!r.GetCount("point", kMinPointBytes, &n, &why)) return Fail(why);
+  for (uint64_t i = 0; i < n; ++i) {
+    uint32_t id = 0, ref = 0;
+    Eigen::Vector3d pos;
+    uint64_t no = 0;
+    if (!r.Get(&id) || !r.Get(&pos[0]) || !r.Get(&pos[1]) || !r.Get(&pos[2]) || !r.Get(&ref)) {
+      return Fail("truncated point");
+    }
+    if (!r.GetCount("observer", kObserverBytes, &no, &why)) return Fail(why);
+    if (!pos.allFinite() || data.point(id) != nullptr) {
+      return Fail("invalid point " + std::to_string(id));
+    }
+    data.AddPoint(id, pos, ref);
+    for (uint64_t o = 0; o < no; ++o) {
+      uint32_t kf = 0;
+      if (!r.Get(&kf)) return Fail("truncated observers");
+      if (!data.AddObservation(id, kf)) return Fail("observation of a missing keyframe feature");
+    }
+  }
+  if (!r.GetCount("link", kLinkBytes, &n, &why)) return Fail(why);
+  for (uint64_t i = 0; i < n; ++i) {
+    uint32_t id = 0, parent = 0;
+    KeyframeLink link;
+    if (!r.Get(&id) || !r.Get(&parent) || !r.GetPose(&link.parent_from_camera)) {
+      return Fail("truncated link or invalid link pose");
+    }
+    link.parent = parent;
+    data.SetLink(id, link);
+  }
+  if (!r.GetMagic(kEndMagic)) return Fail("missing end marker");
+  if (r.remaining() != 0) {
+    return Fail(std::to_string(r.remaining()) + " bytes after the end marker");
+  }
+  data.ClearChanges();
+  return parsed;
+}
 
 }  // namespace
 
@@ -126,99 +268,33 @@ Status Map::Save(const std::string& path, const Camera& camera) const {
 
 Status Map::Load(const std::string& path, const Camera& camera) {
   std::ifstream in(path, std::ios::binary);
-  if (!in) return Status::Error("cannot open map file: " + path);
-  auto bad = [&path](const std::string& what) {
-    return Status::Error("bad map file " + path + ": " + what);
-  };
-  char magic[8];
-  in.read(magic, sizeof(magic));
-  if (!in || std::memcmp(magic, kMagic, sizeof(kMagic)) != 0) return bad("not a Mesh2SLAM map");
-  Reader r(&in);
-  uint32_t version = 0;
-  if (!r.Get(&version)) return bad("truncated header");
-  if (version != kVersion) {
-    return bad("unsupported version " + std::to_string(version) + " (expected " +
-               std::to_string(kVersion) + ")");
+  std::error_code ec;
+  const uintmax_t size = std::filesystem::file_size(path, ec);
+  if (!in || ec) return Status::Error("cannot open map file: " + path);
+  std::vector<uint8_t> bytes(static_cast<size_t>(size));
+  in.read(reinterpret_cast<char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+  if (static_cast<uintmax_t>(in.gcount()) != size) {
+    return Status::Error("cannot read map file: " + path);
   }
-  int32_t width = 0, height = 0;
-  double k[4];
-  if (!r.Get(&width) || !r.Get(&height) || !r.Get(&k[0]) || !r.Get(&k[1]) || !r.Get(&k[2]) ||
-      !r.Get(&k[3])) {
-    return bad("truncated camera");
-  }
-  const double tol = 1e-9;
-  if (width != camera.width || height != camera.height || std::abs(k[0] - camera.fx) > tol ||
-      std::abs(k[1] - camera.fy) > tol || std::abs(k[2] - camera.cx) > tol ||
-      std::abs(k[3] - camera.cy) > tol) {
-    return bad("its camera differs from the system's camera");
-  }
-  uint32_t next_id = 0;
-  if (!r.Get(&next_id)) return bad("truncated header");
+  ParsedMap parsed = ParseMapFile(bytes.data(), bytes.size(), camera);
+  if (!parsed.error.empty()) return Status::Error("bad map file " + path + ": " + parsed.error);
+  Install(std::move(parsed.data), parsed.next_id);
+  return Status::Ok();
+}
 
-  MapData data;
-  uint64_t n = 0;
-  if (!r.GetCount(&n)) return bad("truncated or corrupt keyframe count");
-  for (uint64_t i = 0; i < n; ++i) {
-    Keyframe kf;
-    uint32_t id = 0;
-    uint64_t nf = 0;
-    if (!r.Get(&id) || !r.Get(&kf.seq) || !r.Get(&kf.timestamp) ||
-        !r.GetPose(&kf.world_from_camera) || !r.GetCount(&nf)) {
-      return bad("truncated keyframe");
-    }
-    kf.id = id;
-    if (id >= next_id || data.keyframe(id) != nullptr) return bad("inconsistent keyframe ids");
-    kf.ids.resize(nf);
-    kf.uvs.resize(nf);
-    for (uint64_t f = 0; f < nf; ++f) {
-      uint32_t vid = 0;
-      double u = 0, v = 0;
-      if (!r.Get(&vid) || !r.Get(&u) || !r.Get(&v)) return bad("truncated keyframe features");
-      if (f > 0 && vid <= kf.ids[f - 1]) return bad("keyframe features not sorted");
-      kf.ids[f] = vid;
-      kf.uvs[f] = Eigen::Vector2d(u, v);
-    }
-    data.AddKeyframe(std::move(kf));
-  }
-  if (!r.GetCount(&n)) return bad("truncated or corrupt point count");
-  for (uint64_t i = 0; i < n; ++i) {
-    uint32_t id = 0, ref = 0;
-    Eigen::Vector3d pos;
-    uint64_t no = 0;
-    if (!r.Get(&id) || !r.Get(&pos[0]) || !r.Get(&pos[1]) || !r.Get(&pos[2]) || !r.Get(&ref) ||
-        !r.GetCount(&no)) {
-      return bad("truncated point");
-    }
-    if (!pos.allFinite() || data.point(id) != nullptr)
-      return bad("invalid point " + std::to_string(id));
-    data.AddPoint(id, pos, ref);
-    for (uint64_t o = 0; o < no; ++o) {
-      uint32_t kf = 0;
-      if (!r.Get(&kf)) return bad("truncated observers");
-      if (!data.AddObservation(id, kf)) return bad("observation of a missing keyframe feature");
-    }
-  }
-  if (!r.GetCount(&n)) return bad("truncated link count");
-  for (uint64_t i = 0; i < n; ++i) {
-    uint32_t id = 0, parent = 0;
-    KeyframeLink link;
-    if (!r.Get(&id) || !r.Get(&parent) || !r.GetPose(&link.parent_from_camera)) {
-      return bad("truncated links");
-    }
-    link.parent = parent;
-    data.SetLink(id, link);
-  }
-  in.read(magic, sizeof(magic));
-  if (!in || std::memcmp(magic, kEndMagic, sizeof(kEndMagic)) != 0)
-    return bad("missing end marker");
+Status Map::LoadFromBytes(const void* data, size_t size, const Camera& camera) {
+  ParsedMap parsed = ParseMapFile(data, size, camera);
+  if (!parsed.error.empty()) return Status::Error("bad map file: " + parsed.error);
+  Install(std::move(parsed.data), parsed.next_id);
+  return Status::Ok();
+}
 
+void Map::Install(MapData data, KeyframeId next_id) {
   std::unique_lock<std::shared_mutex> lock(mutex_);
-  data.ClearChanges();
   data_ = std::move(data);
   ++revision_;
   next_delta_full_ = true;
-  next_keyframe_id_ = std::max(next_keyframe_id_, static_cast<KeyframeId>(next_id));
-  return Status::Ok();
+  next_keyframe_id_ = std::max(next_keyframe_id_, next_id);
 }
 
 }  // namespace m2s::slam

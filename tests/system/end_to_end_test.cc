@@ -119,7 +119,7 @@ TEST(EndToEndTest, TruncatedLogIsReportedWithItsOffsetAndTheStartIsUsed) {
   EXPECT_GT(result->frames, 10);
   EXPECT_EQ(result->metrics.frames_processed, result->metrics.frames_total);
 
-  // Garbage in the middle: the reader resynchronises and says where.
+  // Garbage in the middle: the events before it are used and the problem says where.
   std::string corrupt = bytes;
   for (size_t i = 200000; i < 230000; ++i) corrupt[i] = '\x5a';
   {

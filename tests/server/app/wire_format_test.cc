@@ -2,7 +2,10 @@
 #include "m2s/common/wire_format.h"
 
 #include <cmath>
+#include <cstring>
 #include <random>
+#include <string>
+#include <utility>
 
 #include <gtest/gtest.h>
 
@@ -231,6 +234,178 @@ TEST(WireFormatTest, SessionControlValidation) {
   bytes = Encode(m);
   EXPECT_EQ(DecodeSessionControl(bytes.data(), bytes.size()).reason(),
             DropReason::kBadSessionMessage);
+}
+
+// Big-endian int32 at `offset`, as lcm encodes lengths and counts.
+void PutI32(std::vector<uint8_t>* bytes, size_t offset, uint32_t value) {
+  for (int i = 0; i < 4; ++i) (*bytes)[offset + i] = static_cast<uint8_t>(value >> (24 - 8 * i));
+}
+
+std::vector<uint8_t> EncodedSessionControl(const std::string& client_name,
+                                           const std::string& reason) {
+  session_control_t m{};
+  m.version = session_control_t::VERSION;
+  m.type = session_control_t::HELLO;
+  m.client_name = client_name;
+  m.reason = reason;
+  m.camera = ToMessage(Camera());
+  return Encode(m);
+}
+
+// client_name's length field: after the hash, version, type and four int64.
+constexpr size_t kClientNameLengthOffset = 8 + 2 + 1 + 4 * 8;
+
+TEST(WireFormatTest, SessionControlWithStringLengthInt32MinIsBadBytes) {
+  // The 115-byte message of the security review: a two-character client name whose length
+  // field says 0x80000000 (lcm-gen's decoder computes len - 1 on it and reads 2 GiB).
+  std::vector<uint8_t> bytes = EncodedSessionControl("m2", "");
+  ASSERT_EQ(bytes.size(), 115u);
+  ASSERT_TRUE(DecodeSessionControl(bytes.data(), bytes.size()).ok());
+  PutI32(&bytes, kClientNameLengthOffset, 0x80000000u);
+  const auto decoded = DecodeSessionControl(bytes.data(), bytes.size());
+  ASSERT_FALSE(decoded.ok());
+  EXPECT_EQ(decoded.reason(), DropReason::kBadBytes);
+  EXPECT_NE(decoded.error().find("string length -2147483648"), std::string::npos)
+      << decoded.error();
+}
+
+TEST(WireFormatTest, SessionControlStringLengthsAreCheckedAgainstTheBytesLeft) {
+  const std::vector<uint8_t> good = EncodedSessionControl("quest", "why");
+  ASSERT_TRUE(DecodeSessionControl(good.data(), good.size()).ok());
+  const size_t name_at = kClientNameLengthOffset;  // length 6: "quest" and its NUL
+  const size_t reason_at = name_at + 4 + 6;        // length 4: "why" and its NUL
+  const std::pair<size_t, int32_t> fields[] = {{name_at, 6}, {reason_at, 4}};
+  for (const auto& [offset, length] : fields) {
+    const int32_t left = static_cast<int32_t>(good.size() - offset - 4);
+    for (int32_t tampered : {0, -1, INT32_MIN, INT32_MAX, length - 1, length + 1, left, left + 1}) {
+      std::vector<uint8_t> bytes = good;
+      PutI32(&bytes, offset, static_cast<uint32_t>(tampered));
+      const auto decoded = DecodeSessionControl(bytes.data(), bytes.size());
+      ASSERT_FALSE(decoded.ok()) << offset << " " << tampered;
+      EXPECT_EQ(decoded.reason(), DropReason::kBadBytes) << offset << " " << tampered;
+    }
+    // The byte the length points at is not the NUL.
+    std::vector<uint8_t> bytes = good;
+    bytes[offset + 4 + static_cast<size_t>(length) - 1] = 'x';
+    const auto decoded = DecodeSessionControl(bytes.data(), bytes.size());
+    EXPECT_EQ(decoded.reason(), DropReason::kBadBytes);
+    EXPECT_NE(decoded.error().find("NUL"), std::string::npos) << decoded.error();
+  }
+  std::vector<uint8_t> longer = good;
+  longer.push_back(0);
+  EXPECT_EQ(DecodeSessionControl(longer.data(), longer.size()).reason(), DropReason::kBadBytes);
+  for (size_t n = 0; n < good.size(); ++n) {
+    EXPECT_EQ(DecodeSessionControl(good.data(), n).reason(), DropReason::kBadBytes) << n;
+  }
+}
+
+TEST(WireFormatTest, PoseEstimateHasItsExactSize) {
+  pose_estimate_t pose{};
+  pose.version = pose_estimate_t::VERSION;
+  pose.world_from_camera = ToMessage(Pose3());
+  std::vector<uint8_t> bytes = Encode(pose);
+  ASSERT_EQ(bytes.size(), 128u);
+  ASSERT_TRUE(DecodePoseEstimate(bytes.data(), bytes.size()).ok());
+  for (size_t n = 0; n < bytes.size(); ++n) {
+    EXPECT_EQ(DecodePoseEstimate(bytes.data(), n).reason(), DropReason::kBadBytes) << n;
+  }
+  bytes.push_back(0);
+  const auto longer = DecodePoseEstimate(bytes.data(), bytes.size());
+  EXPECT_EQ(longer.reason(), DropReason::kBadBytes);
+  EXPECT_NE(longer.error().find("1 trailing bytes"), std::string::npos) << longer.error();
+}
+
+TEST(WireFormatTest, ServerStatsStringsAndCountsAreChecked) {
+  server_stats_t stats{};
+  stats.version = server_stats_t::VERSION;
+  stats.num_drop_reasons = 2;
+  stats.drop_reasons = {"bad_bytes", "stale"};
+  stats.drop_counts = {3, 4};
+  const std::vector<uint8_t> good = Encode(stats);
+  const auto decoded = DecodeServerStats(good.data(), good.size());
+  ASSERT_TRUE(decoded.ok()) << decoded.error();
+  EXPECT_EQ(decoded->drop_reasons[1], "stale");
+  const size_t count_at = 8 + 2 + 8 + 8 + 4 + 3 * 8;
+  const size_t first_string_at = count_at + 4;  // length 10: "bad_bytes" and its NUL
+  for (const auto& [offset, tampered] :
+       std::vector<std::pair<size_t, uint32_t>>{{count_at, 0x80000000u},
+                                                {count_at, 0xffffffffu},
+                                                {count_at, 3},
+                                                {first_string_at, 0x80000000u},
+                                                {first_string_at, 0},
+                                                {first_string_at, 9},
+                                                {first_string_at, 0x7fffffffu}}) {
+    std::vector<uint8_t> bytes = good;
+    PutI32(&bytes, offset, tampered);
+    EXPECT_EQ(DecodeServerStats(bytes.data(), bytes.size()).reason(), DropReason::kBadBytes)
+        << offset << " " << tampered;
+  }
+}
+
+TEST(WireFormatTest, AnyTamperedInt32NeverCrashesADecoder) {
+  map_delta_t delta{};
+  delta.version = map_delta_t::VERSION;
+  delta.num_keyframes = 1;
+  delta.keyframes.resize(1);
+  delta.keyframes[0].world_from_camera = ToMessage(Pose3());
+  delta.num_removed_keyframes = 1;
+  delta.removed_keyframes = {3};
+  delta.num_points = 1;
+  delta.point_ids = {1};
+  delta.point_xyz = {{0, 1, 2}};
+  delta.num_removed_points = 1;
+  delta.removed_points = {4};
+  server_stats_t stats{};
+  stats.version = server_stats_t::VERSION;
+  stats.num_drop_reasons = 1;
+  stats.drop_reasons = {"stale"};
+  stats.drop_counts = {1};
+  pose_estimate_t pose{};
+  pose.version = pose_estimate_t::VERSION;
+  pose.world_from_camera = ToMessage(Pose3());
+  const std::vector<std::vector<uint8_t>> messages = {
+      EncodeFeatureFrame(RandomFrame(640, 480, 3, 6)), EncodedSessionControl("quest", "why"),
+      Encode(delta), Encode(stats), Encode(pose)};
+  for (const std::vector<uint8_t>& good : messages) {
+    for (size_t offset = 8; offset + 4 <= good.size(); ++offset) {
+      for (uint32_t tampered : {0x80000000u, 0xffffffffu, 0x7fffffffu, 0u, 1u}) {
+        std::vector<uint8_t> bytes = good;
+        PutI32(&bytes, offset, tampered);
+        // Decoding must fail cleanly or succeed; each decoder sees every message.
+        DecodeFeatureFrame(bytes.data(), bytes.size(), {});
+        DecodeSessionControl(bytes.data(), bytes.size());
+        DecodeMapDelta(bytes.data(), bytes.size());
+        DecodeServerStats(bytes.data(), bytes.size());
+        DecodePoseEstimate(bytes.data(), bytes.size());
+      }
+    }
+  }
+}
+
+TEST(WireFormatTest, MapDeltaCountsAreCheckedAgainstTheBytesLeft) {
+  map_delta_t delta{};
+  delta.version = map_delta_t::VERSION;
+  delta.num_removed_keyframes = 1;
+  delta.removed_keyframes = {3};
+  const std::vector<uint8_t> good = Encode(delta);
+  ASSERT_TRUE(DecodeMapDelta(good.data(), good.size()).ok());
+  const size_t removed_at = 8 + 2 + 4 * 8 + 1 + 4;  // after the empty keyframe array
+  for (uint32_t tampered : {0x80000000u, 0xffffffffu, 0u, 2u}) {
+    std::vector<uint8_t> bytes = good;
+    PutI32(&bytes, removed_at, tampered);
+    EXPECT_EQ(DecodeMapDelta(bytes.data(), bytes.size()).reason(), DropReason::kBadBytes)
+        << tampered;
+  }
+}
+
+TEST(WireFormatTest, QuaternionWhoseNormOverflowsIsRejected) {
+  // Found by fuzz_feature_frame: |q| overflows to infinity and q / |q| is a zero rotation.
+  pose_t m = ToMessage(Pose3());
+  m.q[1] = -1.16e257;
+  EXPECT_EQ(FromMessage(m).reason(), DropReason::kNonFinite);
+  feature_frame_t frame = ToMessage(RandomFrame(640, 480, 5, 8));
+  frame.ground_truth_world_from_camera.q[2] = 1e200;
+  EXPECT_EQ(ReasonFor(frame), DropReason::kNonFinite);
 }
 
 }  // namespace

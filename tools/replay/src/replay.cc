@@ -3,21 +3,17 @@
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <map>
 #include <unordered_map>
 
-#include <lcm/lcm-cpp.hpp>
-
 #include "m2s/client/map_replica.h"
+#include "m2s/common/lcm_log.h"
 #include "m2s/common/logging.h"
 #include "m2s/common/scene.h"
 
 namespace m2s::replay {
 namespace {
-
-// Bytes of an event record in an LCM log besides the channel name and the data: sync word,
-// event number, timestamp, channel length, data length.
-constexpr int64_t kEventHeaderBytes = 4 + 8 + 8 + 4 + 4;
 
 struct SessionState {
   std::vector<client::FrameRecord> records;
@@ -32,8 +28,9 @@ Expected<ReplayResult> Replay(const ReplayOptions& options) {
   std::error_code ec;
   const auto file_size = std::filesystem::file_size(options.log_path, ec);
   if (ec) return Status::Error("cannot read log " + options.log_path + ": " + ec.message());
-  lcm::LogFile log(options.log_path, "r");
-  if (!log.good()) return Status::Error("cannot open log " + options.log_path);
+  std::ifstream log_file(options.log_path, std::ios::binary);
+  if (!log_file) return Status::Error("cannot open log " + options.log_path);
+  wire::LcmLogReader log(&log_file, file_size);
 
   ReplayResult result;
   std::map<int64_t, SessionState> sessions;
@@ -71,32 +68,29 @@ Expected<ReplayResult> Replay(const ReplayOptions& options) {
   };
   server_app::SessionManager manager(server_options, on_publish);
 
-  FILE* file = log.getFilePtr();
-  int64_t position = std::ftell(file);
+  wire::LcmLogEvent event;
   while (true) {
-    const lcm::LogEvent* event = log.readNextEvent();
-    const int64_t after = std::ftell(file);
-    if (!event) {
-      if (after >= 0 && static_cast<uint64_t>(position) < file_size) {
+    const uint64_t position = log.position();  // the end of the previous event
+    if (!log.Next(&event)) {
+      if (!log.error().empty()) {
         result.log_problem = "log " + options.log_path + " broken at byte " +
                              std::to_string(position) + " of " + std::to_string(file_size) +
                              " (after " + std::to_string(result.events) +
-                             " events): truncated or corrupt event; the events before it are used";
+                             " events): truncated or corrupt event (" + log.error() +
+                             "); the events before it are used";
       }
       break;
     }
-    const int64_t expected_end =
-        position + kEventHeaderBytes + static_cast<int64_t>(event->channel.size()) + event->datalen;
-    if (after != expected_end && result.log_problem.empty()) {
+    if (event.skipped_bytes > 0 && result.log_problem.empty()) {
       result.log_problem = "log " + options.log_path + " corrupt at byte " +
-                           std::to_string(position) + ": " + std::to_string(after - expected_end) +
+                           std::to_string(position) + ": " + std::to_string(event.skipped_bytes) +
                            " bytes skipped to the next valid event";
     }
-    position = after;
     ++result.events;
-    if (event->channel == wire::kFrameChannel) {
-      auto frame = wire::DecodeFeatureFrame(event->data, static_cast<size_t>(event->datalen),
-                                            {server_options.max_features});
+    const uint8_t* data = event.data.data();
+    const size_t size = event.data.size();
+    if (event.channel == wire::kFrameChannel) {
+      auto frame = wire::DecodeFeatureFrame(data, size, {server_options.max_features});
       if (frame) {
         std::lock_guard<std::mutex> lock(mutex);
         auto [it, inserted] = sessions.try_emplace(frame->session_id);
@@ -109,7 +103,7 @@ Expected<ReplayResult> Replay(const ReplayOptions& options) {
           r.capture_time_us = frame->capture_time_us;
           r.ground_truth_world_from_camera = frame->ground_truth_world_from_camera;
           r.num_features = static_cast<int>(frame->features.size());
-          r.encoded_bytes = static_cast<size_t>(event->datalen);
+          r.encoded_bytes = size;
           r.send_wall_us = now_us();
           s.by_seq[frame->seq] = s.records.size();
           s.records.push_back(r);
@@ -121,12 +115,12 @@ Expected<ReplayResult> Replay(const ReplayOptions& options) {
       if (frame) {
         frame->send_wall_us = now_us();
         const std::vector<uint8_t> bytes = wire::EncodeFeatureFrame(*frame);
-        manager.HandleMessage(event->channel, bytes.data(), bytes.size());
+        manager.HandleMessage(event.channel, bytes.data(), bytes.size());
       } else {
-        manager.HandleMessage(event->channel, event->data, static_cast<size_t>(event->datalen));
+        manager.HandleMessage(event.channel, data, size);
       }
-    } else if (event->channel == wire::kSessionChannel) {
-      manager.HandleMessage(event->channel, event->data, static_cast<size_t>(event->datalen));
+    } else if (event.channel == wire::kSessionChannel) {
+      manager.HandleMessage(event.channel, data, size);
     }
   }
   manager.Drain();

@@ -1,4 +1,5 @@
-// Replay of a recorded session: an lcm-logger log is read with lcm::LogFile and its frame and
+// Replay of a recorded session: an lcm-logger log is read with the bounds-checked reader of
+// common/lcm_log.h (every length checked against the bytes that remain) and its frame and
 // session messages are fed, in order, through the server's session logic
 // (server_app::SessionManager, synchronous: every frame tracked, deterministic SLAM), as fast
 // as possible. The poses and map deltas it publishes are collected like a live client does and

@@ -1,0 +1,60 @@
+#!/usr/bin/env bash
+# Builds the libFuzzer targets of tests/fuzz in BUILD_DIR (clang, -DM2S_FUZZ=ON) and runs each
+# one: first over its committed inputs (tests/fuzz/regressions/<target>_* and
+# tests/fuzz/corpus/<target>/), then SECONDS of fuzzing (default 10) from its seed corpus. An
+# allocation larger than 512 MB counts as a finding (-malloc_limit_mb), so does a run past 2 GB
+# of memory or 10 s on one input. Prints one line per target; exits non-zero when any target
+# found something (its log and crash input are under BUILD_DIR/fuzz/).
+#
+#   tools/fuzz/run_fuzzers.sh build-fuzz 60
+#   build-fuzz/bin/fuzz_session_control build-fuzz/fuzz/session_control-crash-...   # reproduce
+set -euo pipefail
+
+if [[ $# -lt 1 || $# -gt 2 || ! ${2:-10} =~ ^[0-9]+$ ]]; then
+  echo "usage: $0 BUILD_DIR [SECONDS]" >&2
+  exit 2
+fi
+root=$(cd "$(dirname "$0")/../.." && pwd)
+build_dir=$(mkdir -p "$1" && cd "$1" && pwd)
+seconds=${2:-10}
+targets=(feature_frame session_control pose_estimate map_delta server_stats map_file lcm_log
+         bus_envelope)
+limits=(-rss_limit_mb=2048 -malloc_limit_mb=512 -timeout=10)
+
+if ! cmake -S "$root" -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+    -DM2S_BUILD_TESTS=OFF -DM2S_BUILD_BENCHMARKS=OFF -DM2S_BUILD_XR=OFF -DM2S_FUZZ=ON \
+    -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_C_COMPILER=clang >"$build_dir/configure.log" 2>&1; then
+  echo "configure failed: see $build_dir/configure.log" >&2
+  exit 1
+fi
+if ! cmake --build "$build_dir" -j "${JOBS:-$(nproc)}" >"$build_dir/build.log" 2>&1; then
+  echo "build failed: see $build_dir/build.log" >&2
+  exit 1
+fi
+
+out="$build_dir/fuzz"
+mkdir -p "$out"
+failed=0
+for target in "${targets[@]}"; do
+  bin="$build_dir/bin/fuzz_$target"
+  seeds="$root/tests/fuzz/corpus/$target"
+  corpus="$out/corpus-$target"  # seeds plus what fuzzing adds; the source tree stays clean
+  log="$out/$target.log"
+  mkdir -p "$corpus"
+  shopt -s nullglob
+  inputs=("$root"/tests/fuzz/regressions/"$target"_* "$seeds"/*)
+  shopt -u nullglob
+  status=ok
+  if ! "$bin" "${limits[@]}" "${inputs[@]}" >"$log" 2>&1; then
+    status="FAILED on a committed input"
+  elif ! "$bin" "${limits[@]}" -max_total_time="$seconds" -print_final_stats=1 \
+      -artifact_prefix="$out/$target-" "$corpus" "$seeds" >>"$log" 2>&1; then
+    status="FOUND A CRASH: $(ls -t "$out/$target"-* 2>/dev/null | head -1)"
+  fi
+  runs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log" | tail -1)
+  cov=$(grep -o 'cov: [0-9]*' "$log" | tail -1 | cut -d' ' -f2 || true)
+  printf '%-24s %s: %d committed inputs, %s runs in %s s, coverage %s (log %s)\n' \
+    "fuzz_$target" "$status" "${#inputs[@]}" "${runs:-0}" "$seconds" "${cov:-?}" "$log"
+  [[ $status == ok ]] || failed=1
+done
+exit "$failed"
