@@ -10,6 +10,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <sstream>
 #include <thread>
 
@@ -87,7 +88,8 @@ struct SlamLink {
   std::unique_ptr<client::ClientSession> session;
 };
 
-// `hello_timeout_s` 0 on the render thread: frames open the session if HELLO_ACK is late.
+// `hello_timeout_s` 0 on the render thread: it does not wait for HELLO_ACK (poses count once
+// the acknowledgement arrives; until then frames are sent all the same).
 Expected<SlamLink> OpenLink(const XrClientOptions& options, uint64_t seed, double hello_timeout_s) {
   SlamLink link;
   if (options.on_device) {
@@ -154,222 +156,311 @@ bool XrClientOptions::Check(std::string* why) const {
   return true;
 }
 
-Expected<XrClientResult> RunXrClient(const XrClientOptions& options, XrPlatform* platform) {
-  std::string why;
-  if (!options.Check(&why)) return Status::Error(why);
-  const auto run_start = Clock::now();
+namespace {
 
+// One run of the app, step by step: Create (GL context, scene, projector, renderer, SLAM link,
+// OpenXR session), then per loop iteration ApplyControls and RenderFrame, then Finish (the
+// outputs). Lives on the render thread.
+class XrRun {
+ public:
+  static Expected<std::unique_ptr<XrRun>> Create(const XrClientOptions& options,
+                                                 XrPlatform* platform);
+  // Polls the runtime; false when the app should stop.
+  bool Poll(LoopAction* action) {
+    *action = xr_->PollEvents();
+    return *action != LoopAction::kExit;
+  }
+  Status ApplyControls();
+  Status RenderFrame();
+  Expected<XrClientResult> Finish();
+
+ private:
+  explicit XrRun(const XrClientOptions& options) : options_(options) {}
+  std::vector<ControlEvent::Kind> PendingControls();
+  Status ResetSlam();
+  Status WriteOutputs(const headless::RunInfo& info, const headless::RunMetrics& metrics,
+                      const std::vector<std::string>& state_log, const std::string& runtime);
+
+  const XrClientOptions& options_;
+  const Clock::time_point start_ = Clock::now();
+  std::unique_ptr<GlContext> gl_;
+  Scene scene_;
+  std::unique_ptr<Projector> projector_;
+  std::string projector_name_;
+  std::unique_ptr<client::FrameSource> source_;
+  std::unique_ptr<MapRenderer> renderer_;
+  std::optional<SlamLink> link_;
+  std::vector<client::FrameRecord> finished_records_;  // of sessions ended by a reset
+  XrSessionOptions xr_options_;
+  std::unique_ptr<XrSessionDriver> xr_;
+  Overlay overlay_;
+  bool overlay_visible_ = true;
+  bool exit_requested_ = false;
+  int64_t resets_ = 0, toggles_ = 0;
+  XrTime first_display_time_ = 0, last_display_time_ = 0;
+  std::vector<double> projection_ms_, handoff_ms_, overlay_ms_, frame_ms_;
+  XrClientResult result_;
+};
+
+Expected<std::unique_ptr<XrRun>> XrRun::Create(const XrClientOptions& options,
+                                               XrPlatform* platform) {
+  std::unique_ptr<XrRun> run(new XrRun(options));
+  run->overlay_visible_ = options.overlay;
   // The app's GLES context: the runtime renders from its swapchains, the projector computes in
   // it, the renderer draws in it. Current on this (the render) thread throughout.
   auto gl = GlContext::CreateHeadless();
   if (!gl) return Status::Error("no GLES context: " + gl.error());
+  run->gl_ = std::move(*gl);
   EglHandles egl;
-  egl.display = static_cast<EGLDisplay>((*gl)->egl_display());
-  egl.context = static_cast<EGLContext>((*gl)->egl_context());
+  egl.display = static_cast<EGLDisplay>(run->gl_->egl_display());
+  egl.context = static_cast<EGLContext>(run->gl_->egl_context());
   egl.config = ConfigOf(egl.display, egl.context);
 
   auto loaded_scene = LoadSceneOrDefault(options.mesh_path);
   if (!loaded_scene) return loaded_scene.status();
-  Scene scene = std::move(*loaded_scene);
+  run->scene_ = std::move(*loaded_scene);
   auto kind = ParseProjectorKind(options.projector);
   if (!kind) return kind.status();
-  auto projector = MakeProjector(*kind, scene, options.projector_options, gl->get());
-  std::string projector_name(ToString(*kind));
+  auto projector = MakeProjector(*kind, run->scene_, options.projector_options, run->gl_.get());
+  run->projector_name_ = ToString(*kind);
   if (!projector && *kind == ProjectorKind::kGpu) {
     M2S_LOG(kWarning) << "GPU projector unavailable (" << projector.error() << "); using the CPU";
-    projector = MakeProjector(ProjectorKind::kCpu, scene, options.projector_options, nullptr);
-    projector_name = "cpu";
+    projector = MakeProjector(ProjectorKind::kCpu, run->scene_, options.projector_options, nullptr);
+    run->projector_name_ = "cpu";
   }
   if (!projector) return projector.status();
-  client::FrameSource source(projector->get(), options.camera, options.noise,
-                             static_cast<uint32_t>(scene.num_vertices()), options.send_budget);
+  run->projector_ = std::move(*projector);
+  run->source_ = std::make_unique<client::FrameSource>(
+      run->projector_.get(), options.camera, options.noise,
+      static_cast<uint32_t>(run->scene_.num_vertices()), options.send_budget);
 
   MapRendererOptions render_options;
   render_options.mesh_style = options.draw_mesh ? MapRendererOptions::MeshStyle::kShaded
                                                 : MapRendererOptions::MeshStyle::kHidden;
   auto renderer = MapRenderer::Create(render_options);
   if (!renderer) return renderer.status();
-  if (Status s = (*renderer)->SetMesh(scene.positions, scene.triangles); !s) return s;
-  (*renderer)->SetFrustumCamera(options.camera);
+  run->renderer_ = std::move(*renderer);
+  if (Status s = run->renderer_->SetMesh(run->scene_.positions, run->scene_.triangles); !s) {
+    return s;
+  }
+  run->renderer_->SetFrustumCamera(options.camera);
 
   constexpr double kStartHelloTimeoutS = 2.0;  // before the frame loop: waiting is fine
   auto link = OpenLink(options, 0, kStartHelloTimeoutS);
   if (!link) return link.status();
-  std::vector<client::FrameRecord> finished_records;  // of sessions ended by a reset
+  run->link_ = std::move(*link);
 
-  XrSessionOptions xr_options;
-  xr_options.stage_space = options.stage_space;
-  auto xr = XrSessionDriver::Create(xr_options, platform, egl);
+  run->xr_options_.stage_space = options.stage_space;
+  auto xr = XrSessionDriver::Create(run->xr_options_, platform, egl);
   if (!xr) return xr.status();
+  run->xr_ = std::move(*xr);
+  return run;
+}
 
-  XrClientResult result;
-  Overlay overlay;
-  bool overlay_visible = options.overlay;
-  std::vector<double> projection_ms, handoff_ms, overlay_ms, frame_ms;
-  int64_t resets = 0, toggles = 0;
-  XrTime first_display_time = 0, last_display_time = 0;
-  bool exit_requested = false;
-  for (;;) {
-    const LoopAction action = (*xr)->PollEvents();
-    if (action == LoopAction::kExit) break;
-    std::vector<ControlEvent::Kind> controls;
-    for (const ControlEvent& e : options.events) {
-      if (e.frame == (*xr)->frames_begun()) controls.push_back(e.kind);
-    }
-    if (options.platform_events && !options.platform_events()) {
-      controls.push_back(ControlEvent::Kind::kQuit);
-    }
-    if (options.stdin_keys) {
-      for (ControlEvent::Kind k : ReadKeys()) controls.push_back(k);
-    }
-    for (ControlEvent::Kind k : controls) {
-      if (k == ControlEvent::Kind::kToggleOverlay) {
-        overlay_visible = !overlay_visible;
-        ++toggles;
-        M2S_LOG(kInfo) << "overlay " << (overlay_visible ? "on" : "off");
-      } else if (k == ControlEvent::Kind::kQuit && !exit_requested) {
-        exit_requested = true;
-        (*xr)->RequestExit();
-      } else if (k == ControlEvent::Kind::kReset) {
-        // A new SLAM session; the old one's frames stay in the records.
-        for (const auto& r : link->session->Records()) finished_records.push_back(r);
-        link->session->End();
-        const auto reset_start = Clock::now();
-        auto fresh = OpenLink(options, 0, /*hello_timeout_s=*/0.0);
-        if (!fresh) return fresh.status();
-        link = std::move(fresh);
-        overlay.Reset();
-        ++resets;
-        M2S_LOG(kInfo) << "SLAM reset: new session " << link->session->session_id() << " ("
-                       << MsSince(reset_start) << " ms on the render thread)";
-      }
-    }
-    if (action == LoopAction::kIdle) {
-      std::this_thread::sleep_for(std::chrono::duration<double>(kIdleWaitS));
-      continue;
-    }
-    FrameInfo frame;
-    if (!(*xr)->BeginFrame(&frame)) continue;
-    const auto frame_start = Clock::now();
-    if (first_display_time == 0) first_display_time = frame.display_time;
-    last_display_time = frame.display_time;
-    const bool visible = (*xr)->state() == XR_SESSION_STATE_VISIBLE || (*xr)->focused();
-    if (frame.view_valid && visible) {
-      // The centre eye (VIEW space) is the SLAM camera.
-      const Pose3 world_from_camera = WorldFromCameraFromXrView(frame.world_from_view_xr);
-      const auto t0 = Clock::now();
-      auto features = source.Make(world_from_camera, frame.display_time / 1000,
-                                  static_cast<uint64_t>(frame.index));
-      projection_ms.push_back(MsSince(t0));
-      if (!features) return Status::Error("projection failed: " + features.error());
-      const auto t1 = Clock::now();
-      auto seq = link->session->Send(std::move(*features));
-      handoff_ms.push_back(MsSince(t1));
-      if (!seq) M2S_LOG(kWarning) << "frame not sent: " << seq.error();
-      if (seq) ++result.frames_sent;
-    }
-    const auto t2 = Clock::now();
-    overlay.Update(*link->session, frame.index % options.align_every_frames == 0, overlay_visible,
-                   renderer->get());
-    overlay_ms.push_back(MsSince(t2));
-    if (frame.should_render) {
-      for (int eye = 0; eye < 2; ++eye) {
-        const EyeView& view = frame.eyes[eye];
-        (*xr)->RenderEye(eye, [&](int, int) {
-          const Eigen::Matrix4f v = GlViewFromXrPose(view.world_from_eye_xr).cast<float>();
-          const Eigen::Matrix4f p =
-              GlProjectionFromXrFov(view.fov, xr_options.near_m, xr_options.far_m).cast<float>();
-          if (Status s = (*renderer)->Draw(v, p); !s) M2S_LOG(kWarning) << s.message();
-        });
-      }
-      ++result.frames_rendered;
-    }
-    (*xr)->EndFrame(frame);
-    frame_ms.push_back(MsSince(frame_start));
-    if (options.max_frames > 0 && (*xr)->frames_begun() >= options.max_frames && !exit_requested) {
-      exit_requested = true;
-      (*xr)->RequestExit();
+std::vector<ControlEvent::Kind> XrRun::PendingControls() {
+  std::vector<ControlEvent::Kind> controls;
+  for (const ControlEvent& e : options_.events) {
+    if (e.frame == xr_->frames_begun()) controls.push_back(e.kind);
+  }
+  if (options_.platform_events && !options_.platform_events()) {
+    controls.push_back(ControlEvent::Kind::kQuit);
+  }
+  if (options_.stdin_keys) {
+    for (ControlEvent::Kind k : ReadKeys()) controls.push_back(k);
+  }
+  return controls;
+}
+
+Status XrRun::ApplyControls() {
+  for (ControlEvent::Kind k : PendingControls()) {
+    if (k == ControlEvent::Kind::kToggleOverlay) {
+      overlay_visible_ = !overlay_visible_;
+      ++toggles_;
+      M2S_LOG(kInfo) << "overlay " << (overlay_visible_ ? "on" : "off");
+    } else if (k == ControlEvent::Kind::kQuit && !exit_requested_) {
+      exit_requested_ = true;
+      xr_->RequestExit();
+    } else if (k == ControlEvent::Kind::kReset) {
+      if (Status s = ResetSlam(); !s) return s;
     }
   }
-  result.frames = (*xr)->frames_begun();
+  return Status::Ok();
+}
+
+// A new SLAM session; the old one's frames stay in the records.
+Status XrRun::ResetSlam() {
+  for (const auto& r : link_->session->Records()) finished_records_.push_back(r);
+  link_->session->End();
+  const auto reset_start = Clock::now();
+  auto fresh = OpenLink(options_, 0, /*hello_timeout_s=*/0.0);
+  if (!fresh) return fresh.status();
+  link_ = std::move(*fresh);
+  overlay_.Reset();
+  ++resets_;
+  M2S_LOG(kInfo) << "SLAM reset: new session " << link_->session->session_id() << " ("
+                 << MsSince(reset_start) << " ms on the render thread)";
+  return Status::Ok();
+}
+
+Status XrRun::RenderFrame() {
+  FrameInfo frame;
+  if (!xr_->BeginFrame(&frame)) return Status::Ok();
+  const auto frame_start = Clock::now();
+  if (first_display_time_ == 0) first_display_time_ = frame.display_time;
+  last_display_time_ = frame.display_time;
+  const bool visible = xr_->state() == XR_SESSION_STATE_VISIBLE || xr_->focused();
+  if (frame.view_valid && visible) {
+    // The centre eye (VIEW space) is the SLAM camera.
+    const Pose3 world_from_camera = WorldFromCameraFromXrView(frame.world_from_view_xr);
+    const auto t0 = Clock::now();
+    auto features = source_->Make(world_from_camera, frame.display_time / 1000,
+                                  static_cast<uint64_t>(frame.index));
+    projection_ms_.push_back(MsSince(t0));
+    if (!features) return Status::Error("projection failed: " + features.error());
+    const auto t1 = Clock::now();
+    auto seq = link_->session->Send(std::move(*features));
+    handoff_ms_.push_back(MsSince(t1));
+    if (!seq) M2S_LOG(kWarning) << "frame not sent: " << seq.error();
+    if (seq) ++result_.frames_sent;
+  }
+  const auto t2 = Clock::now();
+  overlay_.Update(*link_->session, frame.index % options_.align_every_frames == 0,
+                  overlay_visible_, renderer_.get());
+  overlay_ms_.push_back(MsSince(t2));
+  if (frame.should_render) {
+    for (int eye = 0; eye < 2; ++eye) {
+      const EyeView& view = frame.eyes[eye];
+      xr_->RenderEye(eye, [&](int, int) {
+        const Eigen::Matrix4f v = GlViewFromXrPose(view.world_from_eye_xr).cast<float>();
+        const Eigen::Matrix4f p =
+            GlProjectionFromXrFov(view.fov, xr_options_.near_m, xr_options_.far_m).cast<float>();
+        if (Status s = renderer_->Draw(v, p); !s) M2S_LOG(kWarning) << s.message();
+      });
+    }
+    ++result_.frames_rendered;
+  }
+  xr_->EndFrame(frame);
+  frame_ms_.push_back(MsSince(frame_start));
+  if (options_.max_frames > 0 && xr_->frames_begun() >= options_.max_frames && !exit_requested_) {
+    exit_requested_ = true;
+    xr_->RequestExit();
+  }
+  return Status::Ok();
+}
+
+Expected<XrClientResult> XrRun::Finish() {
+  result_.frames = xr_->frames_begun();
   const double display_rate_hz =
-      result.frames > 1 && last_display_time > first_display_time
-          ? (result.frames - 1) * 1e9 / static_cast<double>(last_display_time - first_display_time)
+      result_.frames > 1 && last_display_time_ > first_display_time_
+          ? (result_.frames - 1) * 1e9 /
+                static_cast<double>(last_display_time_ - first_display_time_)
           : 0.0;
-  result.sessions = (*xr)->sessions_created();
-  result.instance_lost = (*xr)->instance_lost();
-  const std::string xr_error = (*xr)->error();
-  const std::vector<std::string> state_log = (*xr)->state_log();
-  const std::string runtime_name = (*xr)->runtime_name();
-  xr->reset();  // every OpenXR handle, before the GL objects and the context go
+  result_.sessions = xr_->sessions_created();
+  result_.instance_lost = xr_->instance_lost();
+  const std::string xr_error = xr_->error();
+  const std::vector<std::string> state_log = xr_->state_log();
+  const std::string runtime_name = xr_->runtime_name();
+  xr_.reset();  // every OpenXR handle, before the GL objects and the context go
   if (!xr_error.empty()) return Status::Error("OpenXR: " + xr_error);
 
   // Let SLAM catch up with the frames already handed over, then write the outputs.
-  const std::vector<client::FrameRecord> last = link->session->Records();
-  if (!last.empty()) link->session->WaitForPose(last.back().seq, options.final_pose_timeout_s);
-  link->session->SyncMap(options.final_pose_timeout_s);
-  std::vector<client::FrameRecord> records = finished_records;
-  for (const auto& r : link->session->Records()) records.push_back(r);
-  const client::MapSnapshot map = link->session->replica().Snapshot();
-  const client::ClientCounters counters = link->session->Counters();
-  link->session->End();
-  result.slam_sessions = resets + 1;
+  const std::vector<client::FrameRecord> last = link_->session->Records();
+  if (!last.empty()) link_->session->WaitForPose(last.back().seq, options_.final_pose_timeout_s);
+  link_->session->SyncMap(options_.final_pose_timeout_s);
+  std::vector<client::FrameRecord> records = finished_records_;
+  for (const auto& r : link_->session->Records()) records.push_back(r);
+  const client::MapSnapshot map = link_->session->replica().Snapshot();
+  const client::ClientCounters counters = link_->session->Counters();
+  link_->session->End();
+  result_.slam_sessions = resets_ + 1;
 
   headless::RunInfo info;
-  info.projector = projector_name;
-  info.transport = options.on_device ? "on-device" : "lcm";
+  info.projector = projector_name_;
+  info.transport = options_.on_device ? "on-device" : "lcm";
   info.fps = display_rate_hz;
-  info.frames_total = result.frames_sent;
-  info.sessions = counters.sessions_started + resets;
+  info.frames_total = result_.frames_sent;
+  info.sessions = counters.sessions_started + resets_;
   info.server_restarts = counters.server_restarts;
   info.resync_requests = counters.resync_requests;
-  info.wall_s = std::chrono::duration<double>(Clock::now() - run_start).count();
+  info.bus_refused = counters.refused_by_transport;
+  info.foreign_server_messages = counters.foreign_server_messages;
+  info.wall_s = std::chrono::duration<double>(Clock::now() - start_).count();
   std::error_code ignored;
-  std::filesystem::create_directories(options.out_dir, ignored);
+  std::filesystem::create_directories(options_.out_dir, ignored);
   auto metrics =
-      headless::WriteRunOutputs(options.out_dir, records, map, &scene, options.camera, info);
+      headless::WriteRunOutputs(options_.out_dir, records, map, &scene_, options_.camera, info);
   if (!metrics) return metrics.status();
-  result.ate_rmse = metrics->ate_rmse;
-  result.projection = Stats(projection_ms);
-  result.handoff = Stats(handoff_ms);
-  result.overlay = Stats(overlay_ms);
-  result.frame = Stats(frame_ms);
+  result_.ate_rmse = metrics->ate_rmse;
+  result_.projection = Stats(projection_ms_);
+  result_.handoff = Stats(handoff_ms_);
+  result_.overlay = Stats(overlay_ms_);
+  result_.frame = Stats(frame_ms_);
+  if (Status s = WriteOutputs(info, *metrics, state_log, runtime_name); !s) return s;
+  renderer_.reset();
+  projector_.reset();
+  return result_;
+}
 
-  const nlohmann::json json = {{"runtime", runtime_name},
+Status XrRun::WriteOutputs(const headless::RunInfo& info, const headless::RunMetrics& metrics,
+                           const std::vector<std::string>& state_log,
+                           const std::string& runtime) {
+  const nlohmann::json json = {{"runtime", runtime},
                                {"transport", info.transport},
-                               {"projector", projector_name},
-                               {"frames", result.frames},
-                               {"frames_sent", result.frames_sent},
-                               {"frames_rendered", result.frames_rendered},
-                               {"openxr_sessions", result.sessions},
-                               {"slam_sessions", result.slam_sessions},
-                               {"overlay_toggles", toggles},
-                               {"instance_lost", result.instance_lost},
-                               {"ate_rmse", result.ate_rmse},
-                               {"map_points", metrics->map_points},
-                               {"keyframes", metrics->keyframes},
+                               {"projector", projector_name_},
+                               {"frames", result_.frames},
+                               {"frames_sent", result_.frames_sent},
+                               {"frames_rendered", result_.frames_rendered},
+                               {"openxr_sessions", result_.sessions},
+                               {"slam_sessions", result_.slam_sessions},
+                               {"overlay_toggles", toggles_},
+                               {"instance_lost", result_.instance_lost},
+                               {"ate_rmse", result_.ate_rmse},
+                               {"map_points", metrics.map_points},
+                               {"keyframes", metrics.keyframes},
                                {"render_thread_ms",
-                                {{"projection", ToJson(result.projection)},
-                                 {"handoff", ToJson(result.handoff)},
-                                 {"overlay_update", ToJson(result.overlay)},
-                                 {"frame_total", ToJson(result.frame)}}},
+                                {{"projection", ToJson(result_.projection)},
+                                 {"handoff", ToJson(result_.handoff)},
+                                 {"overlay_update", ToJson(result_.overlay)},
+                                 {"frame_total", ToJson(result_.frame)}}},
                                {"session_states", state_log}};
-  std::ofstream(options.out_dir + "/xr_metrics.json") << json.dump(2) << "\n";
+  const std::string path = options_.out_dir + "/xr_metrics.json";
+  std::ofstream out(path);
+  out << json.dump(2) << "\n";
+  if (!out) return Status::Error("cannot write " + path);
 
   char line[512];
   std::snprintf(line, sizeof(line),
                 "m2s_xr_client: %lld frames (%lld sent, %lld rendered), %lld OpenXR session(s), "
                 "ATE %.4f m; render thread p50/p95: projection %.2f/%.2f ms, hand-off "
                 "%.3f/%.3f ms, overlay %.3f/%.3f ms; outputs in %s",
-                static_cast<long long>(result.frames), static_cast<long long>(result.frames_sent),
-                static_cast<long long>(result.frames_rendered),
-                static_cast<long long>(result.sessions), result.ate_rmse, result.projection.p50_ms,
-                result.projection.p95_ms, result.handoff.p50_ms, result.handoff.p95_ms,
-                result.overlay.p50_ms, result.overlay.p95_ms, options.out_dir.c_str());
-  result.summary = line;
-  renderer->reset();
-  projector->reset();
-  return result;
+                static_cast<long long>(result_.frames),
+                static_cast<long long>(result_.frames_sent),
+                static_cast<long long>(result_.frames_rendered),
+                static_cast<long long>(result_.sessions), result_.ate_rmse,
+                result_.projection.p50_ms, result_.projection.p95_ms, result_.handoff.p50_ms,
+                result_.handoff.p95_ms, result_.overlay.p50_ms, result_.overlay.p95_ms,
+                options_.out_dir.c_str());
+  result_.summary = line;
+  return Status::Ok();
+}
+
+}  // namespace
+
+Expected<XrClientResult> RunXrClient(const XrClientOptions& options, XrPlatform* platform) {
+  std::string why;
+  if (!options.Check(&why)) return Status::Error(why);
+  auto run = XrRun::Create(options, platform);
+  if (!run) return run.status();
+  LoopAction action{};
+  while ((*run)->Poll(&action)) {
+    if (Status s = (*run)->ApplyControls(); !s) return s;
+    if (action == LoopAction::kIdle) {
+      std::this_thread::sleep_for(std::chrono::duration<double>(kIdleWaitS));
+      continue;
+    }
+    if (Status s = (*run)->RenderFrame(); !s) return s;
+  }
+  return (*run)->Finish();
 }
 
 }  // namespace m2s::xr
