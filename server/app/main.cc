@@ -62,9 +62,9 @@ bool ReadConfig(const std::string& path, const CLI::App& app, m2s::server_app::L
   read_double("map_rate_hz", &s.map_rate_hz);
   read_int("queue_capacity", &s.queue_capacity);
   read_bool("deterministic", &s.slam.deterministic);
-  read_int("num_ba_threads", &s.slam.num_ba_threads);
-  read_int("max_keyframes", &s.slam.max_keyframes);
-  read_bool("drift_correction", &s.slam.drift_correction);
+  read_int("num_ba_threads", &s.slam.mapper.num_ba_threads);
+  read_int("max_keyframes", &s.slam.mapper.max_keyframes);
+  read_bool("drift_correction", &s.slam.drift.enabled);
   read_int("mapping_nice", &s.slam.mapping_nice);
   return true;
 }

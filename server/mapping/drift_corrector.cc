@@ -7,6 +7,7 @@
 
 #include "m2s/common/alignment.h"
 #include "m2s/common/logging.h"
+#include "m2s/common/numeric.h"
 #include "mapping/triangulation.h"
 #include "optimization/problems.h"
 
@@ -24,65 +25,104 @@ constexpr double kLoopEdgeWeight = 1.0;
 constexpr double kMaxDriftError = 0.2;
 // The old map agrees with the current keyframe when the old positions of the re-observed
 // points reproject within this many pixel sigmas (median; sqrt of the 2-dof chi-square 95 %
-// bound). 3-D disagreement alone is not evidence of drift: a point triangulated over a short
-// baseline has a depth error of tens of percent, in the old map and in the recent views alike,
-// while its reprojection from the views that measured it stays exact.
+// bound, rounded). 3-D disagreement alone is not evidence of drift: a point triangulated over a
+// short baseline has a depth error of tens of percent, in the old map and in the recent views
+// alike, while its reprojection from the views that measured it stays exact.
 constexpr double kConsistentReprojectionSigmas = 2.45;
-// A correction must bring the old points' median reprojection error in the current keyframe
-// down to this fraction of what it was.
+// A correction must bring the 3-D disagreement down to this fraction of what it was,
+constexpr double kCorrectionErrorGain = 0.5;
+// and the old points' median reprojection error in the current keyframe as well.
 constexpr double kCorrectionReprojectionGain = 0.5;
 
-double Median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-  return v[v.size() / 2];
+// Median distance between the re-triangulated and the stored positions, as a fraction of the
+// median depth.
+double DisagreementError(const std::vector<Eigen::Vector3d>& new_positions,
+                         const std::vector<Eigen::Vector3d>& old_positions, double median_depth) {
+  std::vector<double> disagreement(new_positions.size());
+  for (size_t i = 0; i < new_positions.size(); ++i) {
+    disagreement[i] = (new_positions[i] - old_positions[i]).norm();
+  }
+  return Median(std::move(disagreement)) / median_depth;
+}
+
+// Old from new, fitted to the re-triangulated points, trimmed of outliers (wrong ids, poorly
+// triangulated points) and re-fitted; with the median residual left (fraction of the median
+// depth). nullopt when no alignment exists or too few points survive the trimming.
+struct Alignment {
+  Sim3 old_from_new;
+  double residual_error = 0.0;
+};
+std::optional<Alignment> AlignToOldMap(const std::vector<Eigen::Vector3d>& new_positions,
+                                       const std::vector<Eigen::Vector3d>& old_positions,
+                                       double median_depth, int min_points) {
+  auto s = AlignPoints(new_positions, old_positions, /*with_scale=*/true);
+  if (!s) return std::nullopt;
+  std::vector<double> residual(new_positions.size());
+  for (size_t i = 0; i < new_positions.size(); ++i)
+    residual[i] = ((*s) * new_positions[i] - old_positions[i]).norm();
+  const double bound = kTrimFactor * Median(residual);
+  std::vector<Eigen::Vector3d> src, dst;
+  for (size_t i = 0; i < new_positions.size(); ++i) {
+    if (residual[i] <= bound) src.push_back(new_positions[i]), dst.push_back(old_positions[i]);
+  }
+  if (static_cast<int>(src.size()) < min_points) return std::nullopt;
+  s = AlignPoints(src, dst, /*with_scale=*/true);
+  if (!s) return std::nullopt;
+  std::vector<double> after;
+  for (size_t i = 0; i < src.size(); ++i) after.push_back(((*s) * src[i] - dst[i]).norm());
+  return Alignment{*s, Median(std::move(after)) / median_depth};
 }
 
 }  // namespace
 
-DriftDecision DriftCorrector::Check(KeyframeId keyframe, const std::vector<VertexId>& dormant) {
-  std::vector<Eigen::Vector3d> old_positions, new_positions;
-  std::vector<double> depths;
-  // The old points as the current keyframe sees them: its pose, their stored positions and
-  // its measurements (for the reprojection gate and the check of a correction).
-  Pose3 kf_world_from_camera;
-  std::vector<Eigen::Vector3d> seen_old;
-  std::vector<Eigen::Vector2d> seen_uv;
-  KeyframeId newest_old = 0;
-  size_t max_recent_views = 0;
-  TriangulationChecks checks;
-  checks.min_parallax_deg = options_.min_triangulation_parallax_deg;
-  checks.max_reprojection_px = std::sqrt(5.991) * options_.pixel_sigma;
+const char* ToString(DriftOutcome outcome) {
+  switch (outcome) {
+    case DriftOutcome::kAgree:
+      return "agree";
+    case DriftOutcome::kInconclusive:
+      return "inconclusive";
+    case DriftOutcome::kCorrected:
+      return "corrected";
+    case DriftOutcome::kDeferred:
+      return "deferred";
+  }
+  return "unknown";
+}
+
+DriftCorrector::OldPointsInView DriftCorrector::GatherOldPoints(
+    KeyframeId keyframe, const std::vector<VertexId>& dormant) const {
+  OldPointsInView view;
   map_->Read([&](const MapData& m) {
     const Keyframe* kf = m.keyframe(keyframe);
     if (kf == nullptr) return;
-    kf_world_from_camera = kf->world_from_camera;
+    view.world_from_camera = kf->world_from_camera;
     for (const VertexId id : dormant) {
       const MapPoint* p = m.point(id);
       const Eigen::Vector2d* uv = kf->Find(id);
       if (p == nullptr || uv == nullptr) continue;
-      seen_old.push_back(p->position);
-      seen_uv.push_back(*uv);
+      view.positions.push_back(p->position);
+      view.uvs.push_back(*uv);
     }
   });
-  // Median reprojection error of the old points in the current keyframe posed as `pose`.
-  auto median_reprojection = [&](const Pose3& world_from_camera) {
-    const Pose3 camera_from_world = world_from_camera.Inverse();
-    std::vector<double> e(seen_old.size());
-    for (size_t i = 0; i < seen_old.size(); ++i) {
-      e[i] = std::sqrt(
-          ReprojectionErrorSq(options_.camera, camera_from_world, seen_old[i], seen_uv[i]));
-    }
-    return Median(e);
-  };
-  // The image check first: when it settles the question, the re-triangulations below (the
-  // costly part) are not needed. Mapping is the map's only writer, so the two reads agree.
-  const bool can_gate = static_cast<int>(seen_old.size()) >= options_.loop_min_points;
-  const double reprojection_before = can_gate ? median_reprojection(kf_world_from_camera) : 0.0;
-  if (can_gate && reprojection_before <= kConsistentReprojectionSigmas * options_.pixel_sigma) {
-    last_error_ = 0.0;
-    return DriftDecision::kConsistent;
+  return view;
+}
+
+double DriftCorrector::MedianReprojection(const OldPointsInView& view,
+                                          const Pose3& world_from_camera) const {
+  const Pose3 camera_from_world = world_from_camera.Inverse();
+  std::vector<double> e(view.positions.size());
+  for (size_t i = 0; i < view.positions.size(); ++i) {
+    e[i] = std::sqrt(
+        ReprojectionErrorSq(model_.camera, camera_from_world, view.positions[i], view.uvs[i]));
   }
+  return Median(std::move(e));
+}
+
+DriftCorrector::Retriangulation DriftCorrector::Retriangulate(
+    KeyframeId keyframe, const std::vector<VertexId>& dormant) const {
+  Retriangulation r;
+  const TriangulationChecks checks = PointChecks(model_);
+  std::vector<double> depths;
   map_->Read([&](const MapData& m) {
     const Keyframe* kf = m.keyframe(keyframe);
     if (kf == nullptr) return;
@@ -99,73 +139,74 @@ DriftDecision DriftCorrector::Check(KeyframeId keyframe, const std::vector<Verte
         poses.push_back(o->world_from_camera.Inverse());
         uvs.push_back(*o->Find(id));
       }
-      max_recent_views = std::max(max_recent_views, poses.size());
+      r.max_recent_views = std::max(r.max_recent_views, poses.size());
       if (poses.size() < 2) continue;
-      const auto q = TriangulateChecked(options_.camera, checks, poses, uvs);
+      const auto q = TriangulateChecked(model_.camera, checks, poses, uvs);
       if (!q) continue;
-      old_positions.push_back(p->position);
-      new_positions.push_back(*q);
+      r.old_positions.push_back(p->position);
+      r.new_positions.push_back(*q);
       depths.push_back((kf_from_world * *q).z());
-      newest_old = std::max(newest_old, last);
+      r.newest_old = std::max(r.newest_old, last);
     }
   });
-  if (static_cast<int>(new_positions.size()) < options_.loop_min_points) {
-    return max_recent_views >= static_cast<size_t>(kGiveUpRecentViews) ? DriftDecision::kConsistent
-                                                                       : DriftDecision::kDeferred;
+  r.median_depth = std::max(Median(std::move(depths)), 1e-9);
+  return r;
+}
+
+DriftOutcome DriftCorrector::Check(KeyframeId keyframe, const std::vector<VertexId>& dormant) {
+  // 1. The image check first: when it settles the question, the re-triangulations (the costly
+  // part) are not needed. Mapping is the map's only writer, so the reads below agree with it.
+  const OldPointsInView view = GatherOldPoints(keyframe, dormant);
+  const bool can_gate = static_cast<int>(view.positions.size()) >= options_.min_points;
+  const double reprojection_before =
+      can_gate ? MedianReprojection(view, view.world_from_camera) : 0.0;
+  if (can_gate && reprojection_before <= kConsistentReprojectionSigmas * model_.pixel_sigma) {
+    last_error_ = 0.0;
+    return DriftOutcome::kAgree;
   }
-  const double median_depth = std::max(Median(depths), 1e-9);
-  std::vector<double> disagreement(new_positions.size());
-  for (size_t i = 0; i < new_positions.size(); ++i) {
-    disagreement[i] = (new_positions[i] - old_positions[i]).norm();
+  // 2. The points from their recent views.
+  const Retriangulation r = Retriangulate(keyframe, dormant);
+  if (static_cast<int>(r.new_positions.size()) < options_.min_points) {
+    return r.max_recent_views >= static_cast<size_t>(kGiveUpRecentViews)
+               ? DriftOutcome::kInconclusive
+               : DriftOutcome::kDeferred;
   }
-  last_error_ = Median(disagreement) / median_depth;
-  if (last_error_ < options_.loop_min_error) return DriftDecision::kConsistent;
+  // 3. Their 3-D disagreement.
+  last_error_ = DisagreementError(r.new_positions, r.old_positions, r.median_depth);
+  if (last_error_ < options_.min_error) return DriftOutcome::kAgree;
   // The keyframes right after a correction still settle (global BA); a second correction of
-  // the same loop from them overshoots, so corrections are at least loop_min_keyframe_gap apart.
+  // the same loop from them overshoots, so corrections are at least min_keyframe_gap apart.
   if (last_correction_ &&
-      keyframe - *last_correction_ < static_cast<KeyframeId>(options_.loop_min_keyframe_gap)) {
-    return DriftDecision::kDeferred;
+      keyframe - *last_correction_ < static_cast<KeyframeId>(options_.min_keyframe_gap)) {
+    return DriftOutcome::kDeferred;
   }
   if (last_error_ > kMaxDriftError) {
     M2S_LOG(kWarning) << "drift check at keyframe " << keyframe << ": error " << last_error_
                       << " of median depth is implausible for drift; deferred";
-    return DriftDecision::kDeferred;
+    return DriftOutcome::kDeferred;
   }
-
-  // Old from new, trimmed of outliers (wrong ids, poorly triangulated points), then re-fitted.
-  auto s = AlignPoints(new_positions, old_positions, /*with_scale=*/true);
-  if (!s) return DriftDecision::kConsistent;
-  std::vector<double> residual(new_positions.size());
-  for (size_t i = 0; i < new_positions.size(); ++i)
-    residual[i] = ((*s) * new_positions[i] - old_positions[i]).norm();
-  const double bound = kTrimFactor * Median(residual);
-  std::vector<Eigen::Vector3d> src, dst;
-  for (size_t i = 0; i < new_positions.size(); ++i) {
-    if (residual[i] <= bound) src.push_back(new_positions[i]), dst.push_back(old_positions[i]);
-  }
-  if (static_cast<int>(src.size()) < options_.loop_min_points) return DriftDecision::kConsistent;
-  s = AlignPoints(src, dst, /*with_scale=*/true);
-  if (!s) return DriftDecision::kConsistent;
-  // The correction must explain the disagreement; otherwise it is noise, not drift.
-  std::vector<double> after;
-  for (size_t i = 0; i < src.size(); ++i) after.push_back(((*s) * src[i] - dst[i]).norm());
-  if (Median(after) / median_depth > 0.5 * last_error_) return DriftDecision::kConsistent;
-  // And it must explain what the current keyframe sees: the old points, reprojected into the
-  // keyframe moved by the correction, must agree far better than before. A Sim3 fitted to
-  // depth noise does not.
+  // 4. The correction, which must explain the disagreement (otherwise it is noise, not drift)
+  const std::optional<Alignment> alignment =
+      AlignToOldMap(r.new_positions, r.old_positions, r.median_depth, options_.min_points);
+  if (!alignment) return DriftOutcome::kInconclusive;
+  if (alignment->residual_error > kCorrectionErrorGain * last_error_) return DriftOutcome::kAgree;
+  // and what the current keyframe sees: the old points, reprojected into the keyframe moved by
+  // the correction, must agree far better than before. A Sim3 fitted to depth noise does not.
   if (can_gate) {
-    const double reprojection_after = median_reprojection(s->TransformPose(kf_world_from_camera));
+    const double reprojection_after =
+        MedianReprojection(view, alignment->old_from_new.TransformPose(view.world_from_camera));
     if (reprojection_after > kCorrectionReprojectionGain * reprojection_before) {
       M2S_LOG(kInfo) << "drift check at keyframe " << keyframe << ": a correction of "
                      << last_error_ << " of median depth would leave the old points at "
                      << reprojection_after << " px (from " << reprojection_before
                      << " px); not applied";
-      return DriftDecision::kConsistent;
+      return DriftOutcome::kAgree;
     }
   }
-  Correct(keyframe, *s, newest_old);
+  // 5. The correction.
+  Correct(keyframe, alignment->old_from_new, r.newest_old);
   last_correction_ = keyframe;
-  return DriftDecision::kCorrected;
+  return DriftOutcome::kCorrected;
 }
 
 void DriftCorrector::Correct(KeyframeId keyframe, const Sim3& old_from_new, KeyframeId newest_old) {

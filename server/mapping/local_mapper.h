@@ -1,12 +1,14 @@
 // Local mapping: inserts the keyframes tracking hands over, triangulates new points from ids
 // seen in two or more keyframes, runs the local bundle adjustment over the covisible window
-// (other keyframes observing the window's points held fixed), culls outlier observations,
-// unsupported points and redundant keyframes, and asks the drift corrector to close loops.
+// (mapping/ba_window.h: other keyframes observing the window's points held fixed), culls
+// outlier observations, unsupported points and redundant keyframes (mapping/keyframe_culling.h),
+// and asks the drift corrector to close loops: re-observed old points become observations when
+// it finds that the old map agrees (or after it corrected it), and stay dormant otherwise.
 //
 // Thread-safety: one mapper, called from one thread (the mapping thread, or inline in
 // deterministic mode); it is the map's only writer while tracking runs.
 //
-//   LocalMapper mapper(options, &map);
+//   LocalMapper mapper(options.measurement(), options.mapper, options.drift, &map);
 //   mapper.InsertInitialMap(initial, kf0, kf1);
 //   mapper.Process(candidate);   // per keyframe
 #pragma once
@@ -18,6 +20,7 @@
 
 #include "m2s/slam/system.h"
 #include "map/map.h"
+#include "mapping/ba_window.h"
 #include "mapping/drift_corrector.h"
 #include "mapping/triangulation.h"
 #include "optimization/problems.h"
@@ -41,7 +44,8 @@ struct MappingStats {
 
 class LocalMapper {
  public:
-  LocalMapper(const Options& options, Map* map);
+  LocalMapper(const MeasurementModel& model, const MapperOptions& options,
+              const DriftOptions& drift, Map* map);
 
   // Writes the two initial keyframes and their points (ids reserved by the caller).
   void InsertInitialMap(const InitialMap& initial, KeyframeId first, KeyframeId second);
@@ -56,6 +60,12 @@ class LocalMapper {
   MappingStats stats() const;
 
  private:
+  // Inserts the keyframe (its pose carried through a drift correction made since tracking
+  // proposed it); false when it is stale (made before two or more corrections) and dropped.
+  bool InsertKeyframe(const KeyframeCandidate& candidate);
+  // The drift check of the candidate's dormant points, and their observations merged when the
+  // old map agrees or was corrected; true after a correction.
+  bool CheckDrift(const KeyframeCandidate& candidate);
   void TriangulateNewPoints(KeyframeId kf_id);
   void LocalBundleAdjust(KeyframeId kf_id);
   void CullKeyframes(KeyframeId kf_id);
@@ -70,10 +80,15 @@ class LocalMapper {
   // The new keyframe's measurements of mapped points it does not observe yet (except those
   // left to the drift check), through RetriangulatePoints(ids, keyframe).
   void ExtendPoints(const KeyframeCandidate& candidate);
+  // Solves a BA problem and applies it, then re-triangulates the window's points left out of
+  // it (`rest`). Returns the solve time (ms).
+  double SolveAndApply(BaProblem* problem, const std::vector<VertexId>& rest, int max_iterations);
   // Applies a solved BA problem: poses, positions, outlier observations, unsupported points.
   void ApplyBundleAdjustment(const BaProblem& problem, const BundleAdjustmentResult& result);
 
-  Options options_;
+  MeasurementModel model_;
+  MapperOptions options_;
+  DriftOptions drift_options_;
   Map* map_;
   TriangulationChecks checks_;
   DriftCorrector drift_;

@@ -6,7 +6,16 @@
 
 #include <Eigen/Eigenvalues>
 
+#include "m2s/common/numeric.h"
+
 namespace m2s::slam {
+
+TriangulationChecks PointChecks(const MeasurementModel& model) {
+  TriangulationChecks checks;
+  checks.min_parallax_deg = model.min_triangulation_parallax_deg;
+  checks.max_reprojection_px = std::sqrt(kChi2TwoDof95) * model.pixel_sigma;
+  return checks;
+}
 
 std::optional<Eigen::Vector3d> TriangulateDlt(const Camera& camera,
                                               const std::vector<Pose3>& camera_from_world,

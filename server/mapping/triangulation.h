@@ -13,6 +13,7 @@
 
 #include "m2s/common/camera.h"
 #include "m2s/common/geometry.h"
+#include "m2s/slam/options.h"
 
 namespace m2s::slam {
 
@@ -21,6 +22,10 @@ struct TriangulationChecks {
   double max_reprojection_px = 2.45;  // sqrt(5.991) at sigma 1 px
   double min_depth = 1e-6;            // cheirality (in front of every camera)
 };
+
+// The checks of a new map point under `model`: its parallax bound, and the 2-dof chi-square
+// 95 % bound on the reprojection error.
+TriangulationChecks PointChecks(const MeasurementModel& model);
 
 // Linear (DLT) triangulation in the world frame from >= 2 views; nullopt if degenerate.
 std::optional<Eigen::Vector3d> TriangulateDlt(const Camera& camera,

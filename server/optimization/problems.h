@@ -16,16 +16,17 @@
 
 #include "m2s/common/camera.h"
 #include "m2s/common/geometry.h"
+#include "m2s/common/numeric.h"
 #include "m2s/common/types.h"
 
 namespace m2s::slam {
 
 // ---------- Pose-only optimisation (tracking) ----------
 struct PoseOnlyOptions {
-  double huber_delta_px = 2.0;    // robust loss scale (pixels)
-  double chi2_threshold = 5.991;  // 2-dof chi-square at 95%, on residual^2 / sigma^2
-  double pixel_sigma = 1.0;       // assumed feature noise (pixels)
-  int rounds = 4;                 // optimise / classify outliers rounds (ORB-SLAM2 style)
+  double huber_delta_px = 2.0;            // robust loss scale (pixels)
+  double chi2_threshold = kChi2TwoDof95;  // on residual^2 / sigma^2
+  double pixel_sigma = 1.0;               // assumed feature noise (pixels)
+  int rounds = 4;                         // optimise / classify outliers rounds (ORB-SLAM2 style)
   int max_iterations_per_round = 10;
   // false: hand-written Levenberg-Marquardt on the 6-dof pose with analytic Jacobians (fast,
   // no allocation per iteration); true: the same problem on Ceres (reference, ~10x slower).
@@ -71,7 +72,7 @@ struct BaProblem {
 
 struct BundleAdjustmentOptions {
   double huber_delta_px = 2.0;
-  double chi2_threshold = 5.991;
+  double chi2_threshold = kChi2TwoDof95;
   double pixel_sigma = 1.0;
   int max_iterations = 20;
   int num_threads = 1;

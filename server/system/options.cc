@@ -1,8 +1,21 @@
-#include "m2s/slam/system.h"
-
 #include <cmath>
 
+#include "m2s/slam/options.h"
+#include "m2s/slam/system.h"
+
 namespace m2s::slam {
+namespace {
+
+// Writes `message` (prefixed with the struct's name) to `why`; returns false.
+bool Fail(std::string* why, const char* prefix, const char* message) {
+  if (why != nullptr) *why = std::string(prefix) + message;
+  return false;
+}
+
+// NaN is not positive.
+bool Positive(double value) { return value > 0.0; }
+
+}  // namespace
 
 const char* ToString(TrackingState state) {
   switch (state) {
@@ -20,48 +33,78 @@ const char* ToString(TrackingState state) {
   return "unknown";
 }
 
-bool Options::Check(std::string* why) const {
-  auto fail = [why](const char* msg) {
-    if (why) *why = msg;
-    return false;
-  };
-  if (!camera.Check(why)) return false;
-  if (max_features_per_frame <= 0) return fail("max_features_per_frame must be positive");
-  if (feature_budget < 0) return fail("feature_budget must be >= 0 (0: all features)");
-  if (feature_budget > 0 && feature_budget < init_min_points) {
-    return fail("feature_budget must be at least init_min_points");
-  }
-  if (mapping_nice < 0 || mapping_nice > 19) return fail("mapping_nice must be in [0, 19]");
-  if (input_queue_capacity <= 0) return fail("input_queue_capacity must be positive");
-  if (num_ba_threads <= 0) return fail("num_ba_threads must be positive");
-  if (max_keyframes < 2) return fail("max_keyframes must be at least 2");
-  if (!(pixel_sigma > 0.0) || !std::isfinite(pixel_sigma))
-    return fail("pixel_sigma must be positive");
-  if (!(image_margin_px >= 0.0)) return fail("image_margin_px must be >= 0");
-  if (init_min_points < 8) return fail("init_min_points must be at least 8");
-  if (!(init_min_parallax_deg > 0.0)) return fail("init_min_parallax_deg must be positive");
-  if (init_max_reference_age < 2) return fail("init_max_reference_age must be at least 2");
-  if (min_tracked_points < 6) return fail("min_tracked_points must be at least 6");
-  if (!(keyframe_tracked_ratio > 0.0 && keyframe_tracked_ratio <= 1.0)) {
-    return fail("keyframe_tracked_ratio must be in (0, 1]");
-  }
-  if (keyframe_min_new_points < 1) return fail("keyframe_min_new_points must be positive");
-  if (!(keyframe_baseline_ratio > 0.0)) return fail("keyframe_baseline_ratio must be positive");
-  if (!(keyframe_max_interval_s > 0.0)) return fail("keyframe_max_interval_s must be positive");
-  if (max_tracking_points < 0) return fail("max_tracking_points must be >= 0");
-  if (local_ba_max_points < 0) return fail("local_ba_max_points must be >= 0");
-  if (local_ba_window < 2) return fail("local_ba_window must be at least 2");
-  if (mapping_queue_capacity < 1) return fail("mapping_queue_capacity must be positive");
-  if (!(min_triangulation_parallax_deg > 0.0)) {
-    return fail("min_triangulation_parallax_deg must be positive");
-  }
-  if (!(keyframe_redundancy > 0.0 && keyframe_redundancy <= 1.0)) {
-    return fail("keyframe_redundancy must be in (0, 1]");
-  }
-  if (loop_min_points < 6) return fail("loop_min_points must be at least 6");
-  if (loop_min_keyframe_gap < 2) return fail("loop_min_keyframe_gap must be at least 2");
-  if (!(loop_min_error > 0.0)) return fail("loop_min_error must be positive");
+bool InitializerOptions::Check(std::string* why) const {
+  constexpr char kName[] = "InitializerOptions: ";
+  if (min_points < 8) return Fail(why, kName, "min_points must be at least 8");
+  if (!Positive(min_parallax_deg)) return Fail(why, kName, "min_parallax_deg must be positive");
+  if (max_reference_age < 2) return Fail(why, kName, "max_reference_age must be at least 2");
   return true;
+}
+
+bool TrackerOptions::Check(std::string* why) const {
+  constexpr char kName[] = "TrackerOptions: ";
+  if (max_points < 0) return Fail(why, kName, "max_points must be >= 0 (0: all)");
+  if (min_inliers < 6) return Fail(why, kName, "min_inliers must be at least 6");
+  if (!(keyframe_tracked_ratio > 0.0 && keyframe_tracked_ratio <= 1.0)) {
+    return Fail(why, kName, "keyframe_tracked_ratio must be in (0, 1]");
+  }
+  if (keyframe_min_new_points < 1) {
+    return Fail(why, kName, "keyframe_min_new_points must be positive");
+  }
+  if (!Positive(keyframe_baseline_ratio)) {
+    return Fail(why, kName, "keyframe_baseline_ratio must be positive");
+  }
+  if (!Positive(keyframe_max_interval_s)) {
+    return Fail(why, kName, "keyframe_max_interval_s must be positive");
+  }
+  return true;
+}
+
+bool MapperOptions::Check(std::string* why) const {
+  constexpr char kName[] = "MapperOptions: ";
+  if (local_ba_window < 2) return Fail(why, kName, "local_ba_window must be at least 2");
+  if (local_ba_max_points < 0) return Fail(why, kName, "local_ba_max_points must be >= 0");
+  if (num_ba_threads <= 0) return Fail(why, kName, "num_ba_threads must be positive");
+  if (!(keyframe_redundancy > 0.0 && keyframe_redundancy <= 1.0)) {
+    return Fail(why, kName, "keyframe_redundancy must be in (0, 1]");
+  }
+  if (max_keyframes < 2) return Fail(why, kName, "max_keyframes must be at least 2");
+  return true;
+}
+
+bool DriftOptions::Check(std::string* why) const {
+  constexpr char kName[] = "DriftOptions: ";
+  if (min_points < 6) return Fail(why, kName, "min_points must be at least 6");
+  if (min_keyframe_gap < 2) return Fail(why, kName, "min_keyframe_gap must be at least 2");
+  if (!Positive(min_error)) return Fail(why, kName, "min_error must be positive");
+  return true;
+}
+
+bool Options::Check(std::string* why) const {
+  constexpr char kName[] = "Options: ";
+  if (!camera.Check(why)) return false;
+  if (!Positive(pixel_sigma) || !std::isfinite(pixel_sigma)) {
+    return Fail(why, kName, "pixel_sigma must be positive and finite");
+  }
+  if (!Positive(min_triangulation_parallax_deg)) {
+    return Fail(why, kName, "min_triangulation_parallax_deg must be positive");
+  }
+  if (max_features_per_frame <= 0) {
+    return Fail(why, kName, "max_features_per_frame must be positive");
+  }
+  if (!(image_margin_px >= 0.0)) return Fail(why, kName, "image_margin_px must be >= 0");
+  if (feature_budget < 0) return Fail(why, kName, "feature_budget must be >= 0 (0: all features)");
+  if (feature_budget > 0 && feature_budget < initializer.min_points) {
+    return Fail(why, kName, "feature_budget must be at least initializer.min_points");
+  }
+  if (input_queue_capacity <= 0) return Fail(why, kName, "input_queue_capacity must be positive");
+  if (mapping_queue_capacity < 1) {
+    return Fail(why, kName, "mapping_queue_capacity must be positive");
+  }
+  if (mapping_nice < 0 || mapping_nice > 19) {
+    return Fail(why, kName, "mapping_nice must be in [0, 19]");
+  }
+  return initializer.Check(why) && tracker.Check(why) && mapper.Check(why) && drift.Check(why);
 }
 
 }  // namespace m2s::slam

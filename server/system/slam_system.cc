@@ -8,6 +8,7 @@
 #include <chrono>
 
 #include "m2s/common/logging.h"
+#include "m2s/common/numeric.h"
 #include "tracking/feature_budget.h"
 
 namespace m2s::slam {
@@ -34,10 +35,10 @@ Expected<std::unique_ptr<System>> System::Create(const Options& options) {
 
 SlamSystem::SlamSystem(const Options& options)
     : options_(options),
-      validator_(options),
-      initializer_(options),
-      tracker_(options, &map_),
-      mapper_(options, &map_),
+      validator_(options.camera, options.max_features_per_frame, options.image_margin_px),
+      initializer_(options.measurement(), options.initializer, options.mapper.num_ba_threads),
+      tracker_(options.measurement(), options.tracker, options.drift, &map_),
+      mapper_(options.measurement(), options.mapper, options.drift, &map_),
       localization_only_(options.localization_only),
       input_(static_cast<size_t>(options.input_queue_capacity),
              BoundedQueue<Frame>::Policy::kDropOldest),
@@ -219,13 +220,9 @@ TrackResult SlamSystem::Initialise(const Frame& frame, const SortedFeatures& fea
   const KeyframeId first = map_.NextKeyframeId();
   const KeyframeId second = map_.NextKeyframeId();
   mapper_.InsertInitialMap(*initial, first, second);
-  std::vector<double> depths;
-  const Pose3 camera_from_world = initial->second.world_from_camera.Inverse();
-  for (const auto& p : initial->points) depths.push_back((camera_from_world * p).z());
-  std::nth_element(depths.begin(), depths.begin() + depths.size() / 2, depths.end());
   tracker_.Start(second, initial->second.world_from_camera,
                  static_cast<int>(initial->points.size()), frame.timestamp,
-                 depths[depths.size() / 2]);
+                 MedianDepth(initial->second.world_from_camera.Inverse(), initial->points));
   {
     std::lock_guard<std::mutex> lock(trajectory_mutex_);
     for (Record& r : trajectory_) {

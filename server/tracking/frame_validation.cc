@@ -8,13 +8,13 @@ namespace m2s::slam {
 std::string FrameValidator::Validate(const Frame& frame, SortedFeatures* out) {
   const size_t n = frame.features.size();
   if (n == 0) return "empty";
-  if (n > static_cast<size_t>(options_.max_features_per_frame)) return "too_many_features";
+  if (n > static_cast<size_t>(max_features_)) return "too_many_features";
   if (!std::isfinite(frame.timestamp)) return "non_finite_timestamp";
   if (last_seq_ && frame.seq <= *last_seq_) return "seq_not_increasing";
   if (last_timestamp_ && frame.timestamp < *last_timestamp_) return "timestamp_going_back";
-  const double margin = options_.image_margin_px;
-  const double max_u = options_.camera.width + margin;
-  const double max_v = options_.camera.height + margin;
+  const double margin = image_margin_px_;
+  const double max_u = camera_.width + margin;
+  const double max_v = camera_.height + margin;
   for (const VertexFeature& f : frame.features) {
     if (!std::isfinite(f.uv.x()) || !std::isfinite(f.uv.y())) return "non_finite_uv";
     if (f.uv.x() < -margin || f.uv.y() < -margin || f.uv.x() >= max_u || f.uv.y() >= max_v) {

@@ -5,7 +5,7 @@
 // when its seq / timestamp goes back. Rejection reasons are short stable strings, counted per
 // reason in SystemStats::rejected_by_reason.
 //
-//   FrameValidator validator(options);
+//   FrameValidator validator(camera, max_features_per_frame, image_margin_px);
 //   SortedFeatures features;
 //   if (std::string why = validator.Validate(frame, &features); !why.empty()) { reject(why); }
 #pragma once
@@ -30,7 +30,10 @@ struct SortedFeatures {
 
 class FrameValidator {
  public:
-  explicit FrameValidator(const Options& options) : options_(options) {}
+  // Frames with more than `max_features` features, or one farther than `image_margin_px`
+  // outside the camera's image, are rejected.
+  FrameValidator(const Camera& camera, int max_features, double image_margin_px)
+      : camera_(camera), max_features_(max_features), image_margin_px_(image_margin_px) {}
 
   // Empty string when the frame is valid (then `out` holds its sorted features and the frame
   // becomes the latest accepted one); otherwise the reason, and nothing changes.
@@ -38,7 +41,9 @@ class FrameValidator {
   void Reset() { last_seq_.reset(), last_timestamp_.reset(); }
 
  private:
-  Options options_;
+  Camera camera_;
+  int max_features_;
+  double image_margin_px_;
   std::optional<int64_t> last_seq_;
   std::optional<double> last_timestamp_;
   std::vector<std::pair<VertexId, uint32_t>> order_;  // reused scratch

@@ -7,14 +7,13 @@
 #include <opencv2/core/eigen.hpp>
 
 #include "m2s/common/logging.h"
+#include "m2s/common/numeric.h"
 #include "mapping/triangulation.h"
 #include "optimization/problems.h"
 
 namespace m2s::slam {
 namespace {
 
-constexpr double kChi2OneDof = 3.841;      // 95%, 1 dof (epipolar distance)
-constexpr double kChi2TwoDof = 5.991;      // 95%, 2 dof (transfer / reprojection error)
 constexpr double kHomographyRatio = 0.40;  // ORB-SLAM2: RH > 0.40 selects the homography
 constexpr double kAmbiguityRatio = 0.75;   // second best motion must explain fewer points
 constexpr double kMinGoodFraction = 0.9;   // of the model's inliers
@@ -23,6 +22,8 @@ constexpr int kMotionCheckPoints = 200;    // inliers that rank the candidate mo
 // Refusals of the cheap gates, before any RANSAC (Process treats them apart).
 constexpr char kTooFewShared[] = "too few shared features";
 constexpr char kTooLittleMotion[] = "too little image motion";
+// Prefix of the reason when an OpenCV solver threw.
+constexpr char kOpenCvError[] = "OpenCV error: ";
 // After a refused attempt, retry when the parallax extrapolated linearly in time since the
 // reference reaches this fraction of the bound, and at least this often.
 constexpr double kRetryParallaxFraction = 0.8;
@@ -75,8 +76,8 @@ double ScoreHomography(const Eigen::Matrix3d& h, const Matches& m, double sigma)
         (transfer(h, m.p0[i]) - Eigen::Vector2d(m.p1[i].x, m.p1[i].y)).squaredNorm() * inv_var;
     const double c0 =
         (transfer(h_inv, m.p1[i]) - Eigen::Vector2d(m.p0[i].x, m.p0[i].y)).squaredNorm() * inv_var;
-    if (!(c1 < kChi2TwoDof) || !(c0 < kChi2TwoDof)) continue;
-    score += (kChi2TwoDof - c1) + (kChi2TwoDof - c0);
+    if (!(c1 < kChi2TwoDof95) || !(c0 < kChi2TwoDof95)) continue;
+    score += (kChi2TwoDof95 - c1) + (kChi2TwoDof95 - c0);
   }
   return score;
 }
@@ -90,8 +91,8 @@ double ScoreFundamental(const Eigen::Matrix3d& f, const Matches& m, double sigma
     const double d1 = x1.dot(l1), d0 = x0.dot(l0);
     const double c1 = d1 * d1 / (l1.head<2>().squaredNorm()) * inv_var;
     const double c0 = d0 * d0 / (l0.head<2>().squaredNorm()) * inv_var;
-    if (!(c1 < kChi2OneDof) || !(c0 < kChi2OneDof)) continue;
-    score += (kChi2TwoDof - c1) + (kChi2TwoDof - c0);
+    if (!(c1 < kChi2OneDof95) || !(c0 < kChi2OneDof95)) continue;
+    score += (kChi2TwoDof95 - c1) + (kChi2TwoDof95 - c0);
   }
   return score;
 }
@@ -105,40 +106,34 @@ struct MotionCheck {
   std::vector<double> parallax;
 };
 
-MotionCheck CheckMotion(const Options& options, const Matches& m, const std::vector<int>& inliers,
-                        const Eigen::Matrix3d& r, const Eigen::Vector3d& t) {
+MotionCheck CheckMotion(const MeasurementModel& model, const Matches& m,
+                        const std::vector<int>& inliers, const Eigen::Matrix3d& r,
+                        const Eigen::Vector3d& t) {
   MotionCheck out;
   out.camera1_from_camera0 = Pose3(r, t);
   const std::vector<Pose3> poses = {Pose3::Identity(), out.camera1_from_camera0};
   const Eigen::Vector3d c0 = Eigen::Vector3d::Zero();
   const Eigen::Vector3d c1 = out.camera1_from_camera0.Inverse().translation();
-  const double max_err_sq = 4.0 * options.pixel_sigma * options.pixel_sigma;
+  const double max_err_sq = 4.0 * model.pixel_sigma * model.pixel_sigma;
   for (const int i : inliers) {
     const std::vector<Eigen::Vector2d> uv = {{m.p0[i].x, m.p0[i].y}, {m.p1[i].x, m.p1[i].y}};
-    const auto p = TriangulateDlt(options.camera, poses, uv);
+    const auto p = TriangulateDlt(model.camera, poses, uv);
     if (!p) continue;
-    if (ReprojectionErrorSq(options.camera, poses[0], *p, uv[0]) > max_err_sq) continue;
-    if (ReprojectionErrorSq(options.camera, poses[1], *p, uv[1]) > max_err_sq) continue;
+    if (ReprojectionErrorSq(model.camera, poses[0], *p, uv[0]) > max_err_sq) continue;
+    if (ReprojectionErrorSq(model.camera, poses[1], *p, uv[1]) > max_err_sq) continue;
     ++out.good;
     out.indices.push_back(i);
     out.points.push_back(*p);
     out.parallax.push_back(ParallaxDeg(*p, c0, c1));
   }
-  if (!out.parallax.empty()) {
-    std::vector<double> sorted = out.parallax;
-    std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
-    out.median_parallax_deg = sorted[sorted.size() / 2];
-  }
+  out.median_parallax_deg = Median(out.parallax);
   return out;
 }
 
-}  // namespace
-
-std::optional<TwoViewReconstruction> ReconstructTwoView(const Options& options,
-                                                        const SortedFeatures& view0,
-                                                        const SortedFeatures& view1,
-                                                        std::string* why,
-                                                        double* median_parallax_deg) {
+// ReconstructTwoView without the boundary that turns OpenCV's exceptions into a refusal.
+std::optional<TwoViewReconstruction> ReconstructTwoViewUnguarded(
+    const MeasurementModel& model, const InitializerOptions& options, const SortedFeatures& view0,
+    const SortedFeatures& view1, std::string* why, double* median_parallax_deg) {
   auto fail = [why](const char* reason) -> std::optional<TwoViewReconstruction> {
     if (why) *why = reason;
     return std::nullopt;
@@ -146,24 +141,23 @@ std::optional<TwoViewReconstruction> ReconstructTwoView(const Options& options,
   if (median_parallax_deg) *median_parallax_deg = 0.0;
   const Matches m = Intersect(view0, view1);
   const int n = static_cast<int>(m.ids.size());
-  if (n < options.init_min_points) return fail(kTooFewShared);
+  if (n < options.min_points) return fail(kTooFewShared);
   // Cheap gate: with less image motion than a fraction of the parallax bound there is no
   // chance of enough parallax (rotation can only add image motion, not parallax).
   std::vector<double> flow(n);
   for (int i = 0; i < n; ++i) flow[i] = cv::norm(m.p1[i] - m.p0[i]);
-  std::nth_element(flow.begin(), flow.begin() + n / 2, flow.end());
-  const double min_flow = 0.25 * options.camera.fx * options.init_min_parallax_deg * M_PI / 180.0;
-  if (flow[n / 2] < min_flow) return fail(kTooLittleMotion);
+  const double min_flow = 0.25 * model.camera.fx * options.min_parallax_deg * M_PI / 180.0;
+  if (Median(std::move(flow)) < min_flow) return fail(kTooLittleMotion);
 
   cv::Mat k_cv;
-  cv::eigen2cv(options.camera.K(), k_cv);
-  const double sigma = options.pixel_sigma;
+  cv::eigen2cv(model.camera.K(), k_cv);
+  const double sigma = model.pixel_sigma;
   cv::Mat e_mask, h_mask;
   const cv::Mat e_cv = cv::findEssentialMat(m.p0, m.p1, k_cv, cv::RANSAC, 0.999, sigma, e_mask);
   const cv::Mat h_cv = cv::findHomography(m.p0, m.p1, cv::RANSAC, 2.0 * sigma, h_mask, 2000, 0.999);
   if (e_cv.rows != 3 && h_cv.empty()) return fail("no epipolar or homography model");
 
-  Eigen::Matrix3d k = options.camera.K();
+  Eigen::Matrix3d k = model.camera.K();
   double score_e = 0.0, score_h = 0.0;
   Eigen::Matrix3d e, h;
   if (e_cv.rows == 3 && e_cv.cols == 3) {
@@ -191,7 +185,7 @@ std::optional<TwoViewReconstruction> ReconstructTwoView(const Options& options,
     for (int i = 0; i < n; ++i) {
       if (mask.at<uchar>(i)) inliers.push_back(i);
     }
-    if (static_cast<int>(inliers.size()) < options.init_min_points) {
+    if (static_cast<int>(inliers.size()) < options.min_points) {
       *reason = "too few model inliers";
       return std::nullopt;
     }
@@ -219,13 +213,12 @@ std::optional<TwoViewReconstruction> ReconstructTwoView(const Options& options,
     // The candidate motions are ranked on an even subset of the inliers (the triangulations
     // are most of an attempt's cost); the best one is then checked on all of them.
     std::vector<int> subset;
-    const double step = std::max(1.0, static_cast<double>(inliers.size()) / kMotionCheckPoints);
-    for (double k = 0; k < static_cast<double>(inliers.size()); k += step)
-      subset.push_back(inliers[static_cast<size_t>(k)]);
+    for (const size_t i : EvenlySpacedIndices(inliers.size(), kMotionCheckPoints))
+      subset.push_back(inliers[i]);
     std::vector<MotionCheck> checks;
     for (const auto& [r, t] : motions) {
       if (t.norm() < 1e-12) continue;
-      checks.push_back(CheckMotion(options, m, subset, r, t.normalized()));
+      checks.push_back(CheckMotion(model, m, subset, r, t.normalized()));
     }
     if (checks.empty()) {
       *reason = "no translation between the views";
@@ -240,17 +233,17 @@ std::optional<TwoViewReconstruction> ReconstructTwoView(const Options& options,
       return std::nullopt;
     }
     if (subset.size() < inliers.size()) {
-      checks[0] = CheckMotion(options, m, inliers, checks[0].camera1_from_camera0.RotationMatrix(),
+      checks[0] = CheckMotion(model, m, inliers, checks[0].camera1_from_camera0.RotationMatrix(),
                               checks[0].camera1_from_camera0.translation());
     }
     const int min_good =
-        std::max(options.init_min_points,
+        std::max(options.min_points,
                  static_cast<int>(kMinGoodFraction * static_cast<double>(inliers.size())));
     if (checks[0].good < min_good) {
       *reason = "too few points triangulate with the best motion";
       return std::nullopt;
     }
-    if (checks[0].median_parallax_deg < options.init_min_parallax_deg) {
+    if (checks[0].median_parallax_deg < options.min_parallax_deg) {
       *reason = "too little parallax";
       return std::nullopt;
     }
@@ -270,16 +263,31 @@ std::optional<TwoViewReconstruction> ReconstructTwoView(const Options& options,
   out.camera1_from_camera0 = best.camera1_from_camera0;
   out.median_parallax_deg = best.median_parallax_deg;
   out.used_homography = use_h;
-  const double min_point_parallax = 0.5 * options.min_triangulation_parallax_deg;
+  const double min_point_parallax = 0.5 * model.min_triangulation_parallax_deg;
   for (size_t i = 0; i < best.indices.size(); ++i) {
     if (best.parallax[i] < min_point_parallax) continue;
     out.ids.push_back(m.ids[best.indices[i]]);
     out.points.push_back(best.points[i]);
   }
-  if (static_cast<int>(out.ids.size()) < options.init_min_points) {
+  if (static_cast<int>(out.ids.size()) < options.min_points) {
     return fail("too few points with enough parallax");
   }
   return out;
+}
+
+}  // namespace
+
+std::optional<TwoViewReconstruction> ReconstructTwoView(
+    const MeasurementModel& model, const InitializerOptions& options, const SortedFeatures& view0,
+    const SortedFeatures& view1, std::string* why, double* median_parallax_deg) {
+  try {
+    return ReconstructTwoViewUnguarded(model, options, view0, view1, why, median_parallax_deg);
+  } catch (const cv::Exception& e) {
+    // Degenerate input (OpenCV asserts on it): a refused attempt, never a thrown frame.
+    M2S_LOG(kWarning) << "two-view reconstruction: OpenCV error: " << e.what();
+    if (why) *why = std::string(kOpenCvError) + e.what();
+    return std::nullopt;
+  }
 }
 
 std::optional<InitialMap> Initializer::Process(int64_t seq, double timestamp,
@@ -289,20 +297,21 @@ std::optional<InitialMap> Initializer::Process(int64_t seq, double timestamp,
     frames_since_reference_ = 0;
     next_attempt_time_.reset();
   };
-  if (!reference_ || features.size() < static_cast<size_t>(options_.init_min_points)) {
-    if (features.size() >= static_cast<size_t>(options_.init_min_points)) set_reference();
+  if (!reference_ || features.size() < static_cast<size_t>(options_.min_points)) {
+    if (features.size() >= static_cast<size_t>(options_.min_points)) set_reference();
     last_failure_ = "waiting for a reference frame";
     return std::nullopt;
   }
   ++frames_since_reference_;
   if (next_attempt_time_ && timestamp < *next_attempt_time_) {
     last_failure_ = "too little parallax (waiting)";
-    if (frames_since_reference_ > options_.init_max_reference_age) set_reference();
+    if (frames_since_reference_ > options_.max_reference_age) set_reference();
     return std::nullopt;
   }
   std::string why;
   double parallax = 0.0;
-  auto two_view = ReconstructTwoView(options_, reference_->features, features, &why, &parallax);
+  auto two_view =
+      ReconstructTwoView(model_, options_, reference_->features, features, &why, &parallax);
   if (!two_view) {
     last_failure_ = why;
     // Refusals that ran the RANSACs mostly mean "not enough parallax yet": retry when it may be.
@@ -310,14 +319,14 @@ std::optional<InitialMap> Initializer::Process(int64_t seq, double timestamp,
       const double elapsed = timestamp - reference_->timestamp;
       double wait = kMaxInitRetryDelayS;
       if (parallax > 0.0 && elapsed > 0.0) {
-        const double needed = kRetryParallaxFraction * options_.init_min_parallax_deg;
+        const double needed = kRetryParallaxFraction * options_.min_parallax_deg;
         wait = std::clamp(elapsed * (needed / parallax - 1.0), 0.0, kMaxInitRetryDelayS);
       }
       next_attempt_time_ = timestamp + wait;
     }
     M2S_LOG(kDebug) << "initialisation with frames " << reference_->seq << " and " << seq
                     << " refused: " << why;
-    if (frames_since_reference_ > options_.init_max_reference_age || why == kTooFewShared) {
+    if (frames_since_reference_ > options_.max_reference_age || why == kTooFewShared) {
       set_reference();
     }
     return std::nullopt;
@@ -338,11 +347,11 @@ std::optional<InitialMap> Initializer::Process(int64_t seq, double timestamp,
     }
   }
   BundleAdjustmentOptions ba;
-  ba.pixel_sigma = options_.pixel_sigma;
-  ba.huber_delta_px = 2.0 * options_.pixel_sigma;
+  ba.pixel_sigma = model_.pixel_sigma;
+  ba.huber_delta_px = 2.0 * model_.pixel_sigma;
   ba.max_iterations = 50;
-  ba.num_threads = options_.num_ba_threads;
-  const BundleAdjustmentResult result = BundleAdjust(options_.camera, ba, &problem);
+  ba.num_threads = num_ba_threads_;
+  const BundleAdjustmentResult result = BundleAdjust(model_.camera, ba, &problem);
   if (!result.success) {
     last_failure_ = "initial bundle adjustment failed";
     set_reference();
@@ -354,22 +363,20 @@ std::optional<InitialMap> Initializer::Process(int64_t seq, double timestamp,
       bad[problem.observations[o].point_index] = true;
   }
   const Pose3 camera1_from_world = problem.keyframes[1].camera_from_world;
-  std::vector<double> depths;
   InitialMap map;
   for (size_t i = 0; i < problem.points.size(); ++i) {
     const Eigen::Vector3d& p = problem.points[i].position_world;
     if (bad[i] || !p.allFinite() || p.z() <= 0.0 || (camera1_from_world * p).z() <= 0.0) continue;
     map.point_ids.push_back(problem.points[i].id);
     map.points.push_back(p);
-    depths.push_back(p.z());
   }
-  if (static_cast<int>(depths.size()) < options_.init_min_points) {
+  if (static_cast<int>(map.points.size()) < options_.min_points) {
     last_failure_ = "too few points after bundle adjustment";
     set_reference();
     return std::nullopt;
   }
-  std::nth_element(depths.begin(), depths.begin() + depths.size() / 2, depths.end());
-  const double scale = 1.0 / depths[depths.size() / 2];
+  // The points are in the first camera's frame (the world).
+  const double scale = 1.0 / MedianDepth(Pose3::Identity(), map.points);
   for (auto& p : map.points) p *= scale;
   const Pose3 world_from_camera1 =
       Pose3(camera1_from_world.rotation(), camera1_from_world.translation() * scale).Inverse();

@@ -8,9 +8,12 @@
 // parallax, growing with the time since the reference frame, should be near the bound (at most
 // kMaxInitRetryDelayS later), so waiting frames stay cheap.
 //
+// OpenCV's solvers run behind one boundary: an exception they throw (degenerate input) is a
+// refused attempt with the reason, never an exception out of the initialiser.
+//
 // Not thread-safe (one per tracking thread).
 //
-//   Initializer init(options);
+//   Initializer init(options.measurement(), options.initializer, options.mapper.num_ba_threads);
 //   if (auto map = init.Process(seq, timestamp, features)) { /* two keyframes + points */ }
 #pragma once
 
@@ -34,11 +37,11 @@ struct TwoViewReconstruction {
 // Two-view reconstruction from matched features (matched by id). nullopt, with the reason in
 // `why`, when the views cannot be reconstructed reliably; `median_parallax_deg` (optional)
 // receives the parallax of the best motion when one was triangulated (else 0).
-std::optional<TwoViewReconstruction> ReconstructTwoView(const Options& options,
-                                                        const SortedFeatures& view0,
-                                                        const SortedFeatures& view1,
-                                                        std::string* why,
-                                                        double* median_parallax_deg = nullptr);
+// Points need half the model's min_triangulation_parallax_deg (the initial map is refined by
+// a full bundle adjustment).
+std::optional<TwoViewReconstruction> ReconstructTwoView(
+    const MeasurementModel& model, const InitializerOptions& options, const SortedFeatures& view0,
+    const SortedFeatures& view1, std::string* why, double* median_parallax_deg = nullptr);
 
 struct InitialFrame {
   int64_t seq = 0;
@@ -57,7 +60,9 @@ struct InitialMap {
 
 class Initializer {
  public:
-  explicit Initializer(const Options& options) : options_(options) {}
+  // `num_ba_threads`: threads of the two-view bundle adjustment.
+  Initializer(const MeasurementModel& model, const InitializerOptions& options, int num_ba_threads)
+      : model_(model), options_(options), num_ba_threads_(num_ba_threads) {}
 
   // Feeds one valid frame. Returns the initial map once two frames (the reference and this
   // one) reconstruct; otherwise nullopt (last_failure() says why).
@@ -70,7 +75,9 @@ class Initializer {
   }
 
  private:
-  Options options_;
+  MeasurementModel model_;
+  InitializerOptions options_;
+  int num_ba_threads_;
   std::optional<InitialFrame> reference_;
   int frames_since_reference_ = 0;
   std::optional<double> next_attempt_time_;  // no full attempt before this capture time

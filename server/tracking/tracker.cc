@@ -6,17 +6,18 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/eigen.hpp>
 
+#include "m2s/common/logging.h"
+#include "m2s/common/numeric.h"
 #include "optimization/problems.h"
 
 namespace m2s::slam {
 namespace {
 
-constexpr int kMaxPnpPoints = 500;
-constexpr double kChi2TwoDof = 5.991;
+constexpr int kMaxPnpPoints = 500;  // RANSAC input, subsampled evenly beyond this
 // Dormant points join tracking when the recent points' truncated cost at the joint pose exceeds
 // their own optimum by at most chi2(6 dof, 99.9 %) plus this much per recent inlier (map noise
 // in the recent points makes them fit their own pose a little better than the noise alone).
-constexpr double kAgreementChi2 = 22.46;
+constexpr double kAgreementChi2 = kChi2SixDof999;
 constexpr double kAgreementPerPoint = 0.5;
 // SolvePoseFromPrior: a result under this fraction of the prior's inliers is retried, with
 // this many classification rounds.
@@ -24,17 +25,44 @@ constexpr double kPriorInlierFraction = 0.97;
 constexpr int kRetryRounds = 10;
 // Below this fraction of the reference keyframe's points, a keyframe is made even when mapping
 // is busy.
-constexpr double kCriticalTrackedRatio = 0.5;  // RANSAC input, subsampled evenly beyond this
+constexpr double kCriticalTrackedRatio = 0.5;
 constexpr int kPnpIterations = 200;
 constexpr double kPnpThresholdSigmas = 4.0;
 // Keyframes for unmapped features need some baseline (fraction of keyframe_baseline_ratio),
 // or the same features would ask for a keyframe on every frame.
 constexpr double kNewPointsBaselineFraction = 0.5;
 
-PoseOnlyOptions MakePoseOptions(const Options& options) {
+// camera_from_world by PnP + RANSAC (OpenCV); nullopt when RANSAC finds no pose or OpenCV
+// throws on degenerate input (logged: a failed relocalisation, never a thrown frame).
+std::optional<Pose3> SolvePnpRansac(const Camera& camera, double threshold_px,
+                                    const std::vector<cv::Point3d>& object,
+                                    const std::vector<cv::Point2d>& image,
+                                    std::vector<int>* inliers) {
+  try {
+    cv::Mat k_cv, rvec, tvec;
+    cv::eigen2cv(camera.K(), k_cv);
+    if (!cv::solvePnPRansac(object, image, k_cv, cv::noArray(), rvec, tvec, false, kPnpIterations,
+                            threshold_px, 0.999, *inliers, cv::SOLVEPNP_AP3P)) {
+      return std::nullopt;
+    }
+    cv::Mat r_cv;
+    cv::Rodrigues(rvec, r_cv);
+    Eigen::Matrix3d r;
+    Eigen::Vector3d t;
+    cv::cv2eigen(r_cv, r);
+    cv::cv2eigen(tvec, t);
+    return Pose3(r, t);
+  } catch (const cv::Exception& e) {
+    M2S_LOG(kWarning) << "relocalisation: OpenCV error: " << e.what();
+    inliers->clear();
+    return std::nullopt;
+  }
+}
+
+PoseOnlyOptions MakePoseOptions(const MeasurementModel& model) {
   PoseOnlyOptions p;
-  p.pixel_sigma = options.pixel_sigma;
-  p.huber_delta_px = std::sqrt(5.991) * options.pixel_sigma;
+  p.pixel_sigma = model.pixel_sigma;
+  p.huber_delta_px = std::sqrt(kChi2TwoDof95) * model.pixel_sigma;
   return p;
 }
 
@@ -94,7 +122,9 @@ int SolvePoseFromPrior(const Camera& camera, const PoseOnlyOptions& options,
   return best_inliers;
 }
 
-Tracker::Tracker(const Options& options, Map* map) : options_(options), map_(map) {}
+Tracker::Tracker(const MeasurementModel& model, const TrackerOptions& options,
+                 const DriftOptions& drift, Map* map)
+    : model_(model), options_(options), drift_(drift), map_(map) {}
 
 void Tracker::Start(KeyframeId keyframe, const Pose3& world_from_camera, int num_points,
                     double timestamp, double median_depth) {
@@ -127,7 +157,7 @@ void Tracker::Reset() {
 
 void Tracker::Associate(const SortedFeatures& features, Association* a) const {
   const KeyframeId newest = reference_kf_.value_or(0);
-  const int gap = options_.loop_min_keyframe_gap;
+  const int gap = drift_.min_keyframe_gap;
   map_->Read([&](const MapData& m) {
     for (size_t i = 0; i < features.size(); ++i) {
       const MapPoint* p = m.point(features.ids[i]);
@@ -166,34 +196,30 @@ bool Tracker::TrackWithModel(const Association& a, Pose3* camera_from_world,
                              std::vector<bool>* inlier) {
   const Pose3 prior = velocity_ * last_camera_from_world_;
   // Solves from the motion prior on the associated points (dormant ones too or not),
-  // subsampled evenly beyond max_tracking_points.
+  // subsampled evenly beyond TrackerOptions::max_points.
   auto solve = [&](bool skip_dormant, Pose3* pose) {
+    std::vector<size_t> usable;
+    usable.reserve(a.ids.size());
+    for (size_t i = 0; i < a.ids.size(); ++i) {
+      if (!(skip_dormant && a.dormant[i])) usable.push_back(i);
+    }
     std::vector<Eigen::Vector3d> points;
     std::vector<Eigen::Vector2d> uvs;
-    const int usable = static_cast<int>(a.ids.size()) - (skip_dormant ? a.num_dormant : 0);
-    const int cap = options_.max_tracking_points;
-    const double step = cap > 0 && usable > cap ? static_cast<double>(usable) / cap : 1.0;
-    points.reserve(static_cast<size_t>(usable));
-    uvs.reserve(static_cast<size_t>(usable));
-    double next = 0.0;
-    int k = -1;
-    for (size_t i = 0; i < a.ids.size(); ++i) {
-      if (skip_dormant && a.dormant[i]) continue;
-      if (++k < static_cast<int>(next)) continue;
-      next += step;
-      points.push_back(a.points[i]);
-      uvs.push_back(a.uvs[i]);
+    for (const size_t k :
+         EvenlySpacedIndices(usable.size(), static_cast<size_t>(options_.max_points))) {
+      points.push_back(a.points[usable[k]]);
+      uvs.push_back(a.uvs[usable[k]]);
     }
-    if (static_cast<int>(points.size()) < options_.min_tracked_points) return false;
+    if (static_cast<int>(points.size()) < options_.min_inliers) return false;
     const int inliers =
-        SolvePoseFromPrior(options_.camera, MakePoseOptions(options_), points, uvs, prior, pose);
-    return inliers >= options_.min_tracked_points;
+        SolvePoseFromPrior(model_.camera, MakePoseOptions(model_), points, uvs, prior, pose);
+    return inliers >= options_.min_inliers;
   };
   // Dormant points (mapped long ago) may carry drift not yet corrected. They are left out
   // only when they disagree with the recent ones: the recent points alone can be few and
   // freshly triangulated, and a pose solved on them alone is then worse than one on all.
   const int num_active = static_cast<int>(a.ids.size()) - a.num_dormant;
-  if (a.num_dormant > 0 && num_active >= 2 * options_.min_tracked_points) {
+  if (a.num_dormant > 0 && num_active >= 2 * options_.min_inliers) {
     Pose3 active_pose, joint_pose;
     const bool active_ok = solve(/*skip_dormant=*/true, &active_pose);
     const bool joint_ok = solve(/*skip_dormant=*/false, &joint_pose);
@@ -209,44 +235,33 @@ bool Tracker::TrackWithModel(const Association& a, Pose3* camera_from_world,
                                        kAgreementChi2 + kAgreementPerPoint * active_inliers);
     if (agree) {
       *camera_from_world = joint_pose;
-      return Classify(a, joint_pose, false, inlier) >= options_.min_tracked_points;
+      return Classify(a, joint_pose, false, inlier) >= options_.min_inliers;
     }
     if (!active_ok) return false;
     *camera_from_world = active_pose;
-    return Classify(a, active_pose, true, inlier) >= options_.min_tracked_points;
+    return Classify(a, active_pose, true, inlier) >= options_.min_inliers;
   }
   Pose3 pose;
   if (!solve(/*skip_dormant=*/false, &pose)) return false;
   *camera_from_world = pose;
-  return Classify(a, pose, false, inlier) >= options_.min_tracked_points;
+  return Classify(a, pose, false, inlier) >= options_.min_inliers;
 }
 
 bool Tracker::Relocalise(const Association& a, Pose3* camera_from_world,
                          std::vector<bool>* inlier) {
   const int n = static_cast<int>(a.ids.size());
-  if (n < options_.min_tracked_points) return false;
+  if (n < options_.min_inliers) return false;
   std::vector<cv::Point3d> object;
   std::vector<cv::Point2d> image;
-  const double step = std::max(1.0, static_cast<double>(n) / kMaxPnpPoints);
-  for (double k = 0; k < n; k += step) {
-    const int i = static_cast<int>(k);
+  for (const size_t i : EvenlySpacedIndices(a.ids.size(), kMaxPnpPoints)) {
     object.emplace_back(a.points[i].x(), a.points[i].y(), a.points[i].z());
     image.emplace_back(a.uvs[i].x(), a.uvs[i].y());
   }
-  cv::Mat k_cv, rvec, tvec;
-  cv::eigen2cv(options_.camera.K(), k_cv);
   std::vector<int> pnp_inliers;
-  const bool ok = cv::solvePnPRansac(object, image, k_cv, cv::noArray(), rvec, tvec, false,
-                                     kPnpIterations, kPnpThresholdSigmas * options_.pixel_sigma,
-                                     0.999, pnp_inliers, cv::SOLVEPNP_AP3P);
-  if (!ok || static_cast<int>(pnp_inliers.size()) < options_.min_tracked_points / 2) return false;
-  cv::Mat r_cv;
-  cv::Rodrigues(rvec, r_cv);
-  Eigen::Matrix3d r;
-  Eigen::Vector3d t;
-  cv::cv2eigen(r_cv, r);
-  cv::cv2eigen(tvec, t);
-  Pose3 pose(r, t);
+  const std::optional<Pose3> solved = SolvePnpRansac(
+      model_.camera, kPnpThresholdSigmas * model_.pixel_sigma, object, image, &pnp_inliers);
+  if (!solved || static_cast<int>(pnp_inliers.size()) < options_.min_inliers / 2) return false;
+  Pose3 pose = *solved;
   // Refine on the PnP inliers, then classify every associated point.
   std::vector<Eigen::Vector3d> points;
   std::vector<Eigen::Vector2d> uvs;
@@ -255,22 +270,22 @@ bool Tracker::Relocalise(const Association& a, Pose3* camera_from_world,
     uvs.emplace_back(image[i].x, image[i].y);
   }
   const PoseOnlyResult refined =
-      OptimizePose(options_.camera, MakePoseOptions(options_), points, uvs, &pose);
-  if (!pose.AllFinite() || refined.num_inliers < options_.min_tracked_points / 2) return false;
+      OptimizePose(model_.camera, MakePoseOptions(model_), points, uvs, &pose);
+  if (!pose.AllFinite() || refined.num_inliers < options_.min_inliers / 2) return false;
   *camera_from_world = pose;
-  return Classify(a, pose, /*skip_dormant=*/false, inlier) >= options_.min_tracked_points;
+  return Classify(a, pose, /*skip_dormant=*/false, inlier) >= options_.min_inliers;
 }
 
 int Tracker::Classify(const Association& a, const Pose3& camera_from_world, bool skip_dormant,
                       std::vector<bool>* inlier) const {
-  const double max_err_sq = kChi2TwoDof * options_.pixel_sigma * options_.pixel_sigma;
+  const double max_err_sq = kChi2TwoDof95 * model_.pixel_sigma * model_.pixel_sigma;
   inlier->assign(a.ids.size(), false);
   int n = 0;
   for (size_t i = 0; i < a.ids.size(); ++i) {
     if (skip_dormant && a.dormant[i]) continue;
     const Eigen::Vector3d pc = camera_from_world * a.points[i];
     if (!(pc.z() > 0.0)) continue;
-    if ((options_.camera.Project(pc) - a.uvs[i]).squaredNorm() <= max_err_sq) {
+    if ((model_.camera.Project(pc) - a.uvs[i]).squaredNorm() <= max_err_sq) {
       (*inlier)[i] = true;
       ++n;
     }
@@ -280,16 +295,16 @@ int Tracker::Classify(const Association& a, const Pose3& camera_from_world, bool
 
 double Tracker::RecentPointsCost(const Association& a, const Pose3& camera_from_world,
                                  int* num_inliers) const {
-  const double inv_var = 1.0 / (options_.pixel_sigma * options_.pixel_sigma);
+  const double inv_var = 1.0 / (model_.pixel_sigma * model_.pixel_sigma);
   double cost = 0.0;
   *num_inliers = 0;
   for (size_t i = 0; i < a.ids.size(); ++i) {
     if (a.dormant[i]) continue;
     const Eigen::Vector3d pc = camera_from_world * a.points[i];
-    double s = kChi2TwoDof;
+    double s = kChi2TwoDof95;
     if (pc.z() > 0.0)
-      s = std::min(s, (options_.camera.Project(pc) - a.uvs[i]).squaredNorm() * inv_var);
-    if (s < kChi2TwoDof) ++*num_inliers;
+      s = std::min(s, (model_.camera.Project(pc) - a.uvs[i]).squaredNorm() * inv_var);
+    if (s < kChi2TwoDof95) ++*num_inliers;
     cost += s;
   }
   return cost;
@@ -361,13 +376,12 @@ TrackerOutput Tracker::Track(int64_t seq, double timestamp, const SortedFeatures
     out.reference_from_camera = a.reference_pose->Inverse() * out.world_from_camera;
   }
 
-  const bool loop_candidate =
-      options_.drift_correction && dormant_inliers >= options_.loop_min_points;
+  const bool loop_candidate = drift_.enabled && dormant_inliers >= drift_.min_points;
   // A busy mapping stage gets a keyframe only when tracking is getting weak (the caller then
   // waits for room in the queue: back-pressure instead of a lost track).
   const int reference_points = a.reference_points >= 0 ? a.reference_points : reference_points_;
   const bool critical = num_inliers < kCriticalTrackedRatio * reference_points;
-  if (options_.localization_only || (mapping_busy && !critical) || relocalised ||
+  if (localization_only_ || (mapping_busy && !critical) || relocalised ||
       !NeedKeyframe(a, num_inliers, out.world_from_camera, timestamp, loop_candidate)) {
     return out;
   }
@@ -378,18 +392,17 @@ TrackerOutput Tracker::Track(int64_t seq, double timestamp, const SortedFeatures
   kf.world_from_camera = out.world_from_camera;
   kf.correction_epoch = correction_epoch_;
   kf.features = features;
-  std::vector<double> depths;
+  std::vector<Eigen::Vector3d> tracked_positions;
   for (size_t i = 0; i < a.ids.size(); ++i) {
     if (a.dormant[i]) {
       kf.dormant_points.push_back(a.ids[i]);
     } else if (inlier[i]) {
       kf.tracked_points.push_back(a.ids[i]);
-      depths.push_back((camera_from_world * a.points[i]).z());
+      tracked_positions.push_back(a.points[i]);
     }
   }
-  if (!depths.empty()) {
-    std::nth_element(depths.begin(), depths.begin() + depths.size() / 2, depths.end());
-    last_keyframe_median_depth_ = depths[depths.size() / 2];
+  if (!tracked_positions.empty()) {
+    last_keyframe_median_depth_ = MedianDepth(camera_from_world, tracked_positions);
   }
   reference_kf_ = kf.id;
   reference_world_from_camera_ = kf.world_from_camera;

@@ -3,10 +3,13 @@
 // state machine (ok / lost / relocalised: PnP + RANSAC against every map point seen), and the
 // keyframe decision.
 //
+// Relocalisation's PnP runs behind an OpenCV boundary: an exception OpenCV throws (degenerate
+// input) is a failed relocalisation, and the frame is lost; Track() never throws it.
+//
 // Thread-safety: one tracker per tracking thread; it only reads the map (and reserves keyframe
 // ids), so it runs concurrently with mapping.
 //
-//   Tracker tracker(options, &map);
+//   Tracker tracker(options.measurement(), options.tracker, options.drift, &map);
 //   tracker.Start(initial_map_keyframe, ...);
 //   TrackerOutput out = tracker.Track(seq, timestamp, features, /*mapping_busy=*/false);
 #pragma once
@@ -59,7 +62,10 @@ int SolvePoseFromPrior(const Camera& camera, const PoseOnlyOptions& options,
 
 class Tracker {
  public:
-  Tracker(const Options& options, Map* map);
+  // `drift`: which re-observed points are dormant (min_keyframe_gap) and when they make a
+  // keyframe for the drift check (enabled, min_points).
+  Tracker(const MeasurementModel& model, const TrackerOptions& options, const DriftOptions& drift,
+          Map* map);
 
   // Starts tracking after initialisation from the newest keyframe.
   void Start(KeyframeId keyframe, const Pose3& world_from_camera, int num_points, double timestamp,
@@ -68,7 +74,7 @@ class Tracker {
   void StartLost();
   void Reset();
   // Localisation only: never proposes keyframes.
-  void SetLocalizationOnly(bool on) { options_.localization_only = on; }
+  void SetLocalizationOnly(bool on) { localization_only_ = on; }
 
   TrackerOutput Track(int64_t seq, double timestamp, const SortedFeatures& features,
                       bool mapping_busy);
@@ -100,8 +106,11 @@ class Tracker {
   bool NeedKeyframe(const Association& a, int num_inliers, const Pose3& world_from_camera,
                     double timestamp, bool loop_candidate) const;
 
-  Options options_;
+  MeasurementModel model_;
+  TrackerOptions options_;
+  DriftOptions drift_;
   Map* map_;
+  bool localization_only_ = false;
   bool started_ = false;
   bool lost_ = false;
   Pose3 last_camera_from_world_;

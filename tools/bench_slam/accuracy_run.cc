@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "m2s/common/alignment.h"
+#include "m2s/common/numeric.h"
 #include "m2s/slam/system.h"
 
 namespace m2s::bench {
@@ -22,13 +23,6 @@ using Clock = std::chrono::steady_clock;
 
 bool HasPose(slam::TrackingState state) {
   return state == slam::TrackingState::kOk || state == slam::TrackingState::kRelocalized;
-}
-
-double Percentile(std::vector<double> values, double q) {
-  if (values.empty()) return 0.0;
-  std::sort(values.begin(), values.end());
-  const size_t index = std::min(values.size() - 1, static_cast<size_t>(q * values.size()));
-  return values[index];
 }
 
 struct Alignment {
@@ -102,8 +96,8 @@ void Evaluate(const Scene& scene, const Trajectory& ground_truth, slam::System& 
       double sum = 0.0;
       for (double e : errors) sum += e * e;
       m->map_rmse_m = std::sqrt(sum / errors.size());
-      m->map_median_m = Percentile(errors, 0.5);
-      m->map_p90_m = Percentile(errors, 0.9);
+      m->map_median_m = Percentile(errors, 0.5, PercentileMethod::kFlooredRank);
+      m->map_p90_m = Percentile(errors, 0.9, PercentileMethod::kFlooredRank);
       m->map_far_fraction =
           static_cast<double>(std::count_if(errors.begin(), errors.end(),
                                             [](double e) { return e > kFarMapPointM; })) /
@@ -152,9 +146,9 @@ void CountResults(const std::vector<slam::TrackResult>& results,
       (r.keyframe_created ? keyframe_ms : track_ms).push_back(ms);
   }
   m->mean_features = results.empty() ? 0.0 : features / results.size();
-  m->track_median_ms = Percentile(track_ms, 0.5);
-  m->track_p90_ms = Percentile(track_ms, 0.9);
-  m->keyframe_median_ms = Percentile(keyframe_ms, 0.5);
+  m->track_median_ms = Percentile(track_ms, 0.5, PercentileMethod::kFlooredRank);
+  m->track_p90_ms = Percentile(track_ms, 0.9, PercentileMethod::kFlooredRank);
+  m->keyframe_median_ms = Percentile(keyframe_ms, 0.5, PercentileMethod::kFlooredRank);
 }
 
 }  // namespace
@@ -181,7 +175,7 @@ Expected<RunMetrics> RunAccuracy(const Scene& scene, const Sequence& sequence,
   options.deterministic = !config.realtime;
   if (config.feature_budget >= 0) options.feature_budget = config.feature_budget;
   if (config.init_min_parallax_deg > 0)
-    options.init_min_parallax_deg = config.init_min_parallax_deg;
+    options.initializer.min_parallax_deg = config.init_min_parallax_deg;
   Expected<std::unique_ptr<slam::System>> created = slam::System::Create(options);
   if (!created) return Status::Error(created.error());
   slam::System& system = **created;

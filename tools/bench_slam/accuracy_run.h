@@ -20,7 +20,7 @@ struct RunConfig {
   bool realtime = false;                // wall-clock pacing into Submit(), threaded mapping
   int budget = 0;                       // features kept per frame (0: every visible vertex)
   int feature_budget = -1;              // slam::Options::feature_budget (-1: the library's default)
-  double init_min_parallax_deg = -1.0;  // slam::Options::init_min_parallax_deg (-1: default)
+  double init_min_parallax_deg = -1.0;  // Options::initializer.min_parallax_deg (-1: default)
   int vertex_stride = 1;                // use only vertices with id % vertex_stride == 0
   double noise_px = 0.5;
   double wrong_id_fraction = 0.01;

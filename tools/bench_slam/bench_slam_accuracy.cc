@@ -111,7 +111,7 @@ int main(int argc, char** argv) {
                  "all; default: the library's)")
       ->check(CLI::Range(-1, 1 << 30));
   app.add_option("--init-parallax-deg", init_parallax_deg,
-                 "slam::Options::init_min_parallax_deg (default: the library's)")
+                 "slam::Options::initializer.min_parallax_deg (default: the library's)")
       ->check(CLI::PositiveNumber);
   app.add_option("--vertex-stride", vertex_stride,
                  "use only vertices with id % stride == 0 (a consistent, sparser scene)")

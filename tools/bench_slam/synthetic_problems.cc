@@ -5,18 +5,12 @@
 
 #include <Eigen/Geometry>
 
+#include "m2s/common/numeric.h"
+
 namespace m2s::bench {
 namespace {
 
 Camera BenchCamera() { return Camera::FromHorizontalFov(640, 480, 90.0); }
-
-Pose3 LookAt(const Eigen::Vector3d& center, const Eigen::Vector3d& target) {
-  const Eigen::Vector3d z = (target - center).normalized();
-  const Eigen::Vector3d x = z.cross(Eigen::Vector3d::UnitZ()).normalized();
-  Eigen::Matrix3d r;
-  r << x, z.cross(x), z;
-  return Pose3(r, center);
-}
 
 Pose3 Perturb(const Pose3& pose, double angle_rad, double shift, std::mt19937* rng) {
   std::normal_distribution<double> normal;

@@ -15,20 +15,12 @@
 
 #include "m2s/common/evaluation.h"
 #include "m2s/common/logging.h"
+#include "m2s/common/numeric.h"
 #include "m2s/common/trajectory.h"
 #include "map_image.h"
 
 namespace m2s::headless {
 namespace {
-
-double Percentile(std::vector<double> values, double q) {
-  if (values.empty()) return 0.0;
-  std::sort(values.begin(), values.end());
-  const double position = q * static_cast<double>(values.size() - 1);
-  const size_t lo = static_cast<size_t>(std::floor(position));
-  const size_t hi = std::min(lo + 1, values.size() - 1);
-  return values[lo] + (values[hi] - values[lo]) * (position - static_cast<double>(lo));
-}
 
 bool Tracked(int8_t state) {
   return state == pose_estimate_t::STATE_OK || state == pose_estimate_t::STATE_RELOCALIZED;

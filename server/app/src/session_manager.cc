@@ -7,6 +7,7 @@
 
 #include "m2s/common/check.h"
 #include "m2s/common/logging.h"
+#include "m2s/common/numeric.h"
 #include "m2s/server_app/messages.h"
 #include "session.h"
 
@@ -26,13 +27,6 @@ int64_t RandomInstance() {
 
 double NowSeconds() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
-
-float Percentile(std::vector<float> values, double q) {
-  if (values.empty()) return 0.f;
-  const size_t k = std::min(values.size() - 1, static_cast<size_t>(q * (values.size() - 1) + 0.5));
-  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(k), values.end());
-  return values[k];
 }
 
 ServerOptions WithInstance(ServerOptions options) {
@@ -364,8 +358,8 @@ server_stats_t SessionManager::StatsMessage() const {
     m.drop_counts.push_back(c.drops[r]);
   }
   m.num_drop_reasons = static_cast<int32_t>(m.drop_reasons.size());
-  m.tracking_ms_p50 = Percentile(times, 0.5);
-  m.tracking_ms_p95 = Percentile(times, 0.95);
+  m.tracking_ms_p50 = Percentile(times, 0.5, PercentileMethod::kRoundedRank);
+  m.tracking_ms_p95 = Percentile(times, 0.95, PercentileMethod::kRoundedRank);
   return m;
 }
 

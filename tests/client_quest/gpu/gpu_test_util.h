@@ -13,6 +13,7 @@
 
 #include "m2s/common/camera.h"
 #include "m2s/common/geometry.h"
+#include "m2s/common/numeric.h"
 #include "m2s/common/scene.h"
 #include "m2s/common/types.h"
 #include "m2s/gpu/gl_context.h"
@@ -27,19 +28,7 @@ namespace m2s::testing {
 
 // world_from_camera of a camera at `eye` looking at `target` (x right, y down, z forward),
 // with `up` roughly up in the image.
-inline Pose3 LookAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target,
-                    const Eigen::Vector3d& up = Eigen::Vector3d::UnitZ()) {
-  const Eigen::Vector3d z = (target - eye).normalized();
-  Eigen::Vector3d x = z.cross(up);
-  if (x.norm() < 1e-9) x = z.unitOrthogonal();
-  x.normalize();
-  const Eigen::Vector3d y = z.cross(x);
-  Eigen::Matrix3d r;
-  r.col(0) = x;
-  r.col(1) = y;
-  r.col(2) = z;
-  return Pose3(r, eye);
-}
+using ::m2s::LookAt;
 
 struct Reference {
   Eigen::Vector3d camera;  // camera-frame position

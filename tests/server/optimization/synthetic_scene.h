@@ -12,6 +12,7 @@
 
 #include "m2s/common/camera.h"
 #include "m2s/common/geometry.h"
+#include "m2s/common/numeric.h"
 
 namespace m2s::slam::testing {
 
@@ -27,16 +28,7 @@ inline Camera TestCamera() {
 }
 
 // world_from_camera of a camera at `center` looking at `target` (world z up, camera y down).
-inline Pose3 LookAt(const Eigen::Vector3d& center, const Eigen::Vector3d& target) {
-  const Eigen::Vector3d z = (target - center).normalized();
-  const Eigen::Vector3d x = z.cross(Eigen::Vector3d::UnitZ()).normalized();
-  const Eigen::Vector3d y = z.cross(x);
-  Eigen::Matrix3d r;
-  r.col(0) = x;
-  r.col(1) = y;
-  r.col(2) = z;
-  return Pose3(r, center);
-}
+using ::m2s::LookAt;
 
 // Uniform points in the cube [-half, half]^3.
 inline std::vector<Eigen::Vector3d> RandomPoints(int count, double half, std::mt19937* rng) {

@@ -46,7 +46,7 @@ TEST(SystemApi, CreateRejectsBadOptions) {
   options.camera.fx = -1.0;
   EXPECT_FALSE(System::Create(options).ok());
   options = Options();
-  options.keyframe_tracked_ratio = 2.0;
+  options.tracker.keyframe_tracked_ratio = 2.0;
   const auto s = System::Create(options);
   ASSERT_FALSE(s.ok());
   EXPECT_NE(s.error().find("keyframe_tracked_ratio"), std::string::npos);

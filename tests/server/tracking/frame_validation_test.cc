@@ -17,8 +17,8 @@ Frame MakeFrame(int64_t seq, double t, std::vector<std::pair<VertexId, Eigen::Ve
 }
 
 TEST(FrameValidator, SortsValidFramesById) {
-  Options options;
-  FrameValidator v(options);
+  const Options options;
+  FrameValidator v(options.camera, options.max_features_per_frame, options.image_margin_px);
   SortedFeatures out;
   EXPECT_EQ(v.Validate(MakeFrame(0, 0.0, {{9, {1, 2}}, {3, {4, 5}}, {5, {6, 7}}}), &out), "");
   EXPECT_EQ(out.ids, (std::vector<VertexId>{3, 5, 9}));
@@ -26,9 +26,8 @@ TEST(FrameValidator, SortsValidFramesById) {
 }
 
 TEST(FrameValidator, RejectsBadFramesWithReasons) {
-  Options options;
-  options.max_features_per_frame = 100;
-  FrameValidator v(options);
+  const Options options;
+  FrameValidator v(options.camera, /*max_features=*/100, options.image_margin_px);
   SortedFeatures out;
   const float nan = std::numeric_limits<float>::quiet_NaN();
   const float inf = std::numeric_limits<float>::infinity();

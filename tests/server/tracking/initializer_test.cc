@@ -78,7 +78,7 @@ TEST(Initializer, GeneralSceneUsesTheEssentialMatrix) {
   const Options options = TestOptions();
   const Pose3 motion = Motion(0.4, 4.0);
   const Views views = MakeViews(options.camera, motion, /*planar=*/false);
-  Initializer init(options);
+  Initializer init(options.measurement(), options.initializer, 1);
   EXPECT_FALSE(init.Process(0, 0.0, views.view0).has_value());
   const auto map = init.Process(1, 0.1, views.view1);
   ASSERT_TRUE(map.has_value()) << init.last_failure();
@@ -93,10 +93,11 @@ TEST(Initializer, PlanarSceneUsesTheHomography) {
   const Pose3 motion = Motion(0.5, -3.0);
   const Views views = MakeViews(options.camera, motion, /*planar=*/true);
   std::string why;
-  const auto two_view = ReconstructTwoView(options, views.view0, views.view1, &why);
+  const auto two_view = ReconstructTwoView(options.measurement(), options.initializer, views.view0,
+                                           views.view1, &why);
   ASSERT_TRUE(two_view.has_value()) << why;
   EXPECT_TRUE(two_view->used_homography);
-  Initializer init(options);
+  Initializer init(options.measurement(), options.initializer, 1);
   init.Process(0, 0.0, views.view0);
   const auto map = init.Process(1, 0.1, views.view1);
   ASSERT_TRUE(map.has_value()) << init.last_failure();
@@ -105,7 +106,7 @@ TEST(Initializer, PlanarSceneUsesTheHomography) {
 
 TEST(Initializer, RefusesPureRotationAndTinyParallax) {
   const Options options = TestOptions();
-  Initializer init(options);
+  Initializer init(options.measurement(), options.initializer, 1);
   const Views first = MakeViews(options.camera, Pose3::Identity(), false);
   EXPECT_FALSE(init.Process(0, 0.0, first.view0).has_value());
   for (int k = 1; k <= 20; ++k) {
@@ -118,7 +119,9 @@ TEST(Initializer, RefusesPureRotationAndTinyParallax) {
   // A 2 mm translation at 3-7 m depth: far below one degree of parallax.
   const Views tiny = MakeViews(options.camera, Motion(0.002, 1.0), false);
   std::string why;
-  EXPECT_FALSE(ReconstructTwoView(options, tiny.view0, tiny.view1, &why).has_value());
+  EXPECT_FALSE(
+      ReconstructTwoView(options.measurement(), options.initializer, tiny.view0, tiny.view1, &why)
+          .has_value());
   EXPECT_FALSE(why.empty());
 }
 
@@ -129,13 +132,42 @@ TEST(Initializer, ToleratesWrongIds) {
   // 3% of the second view's features get the uv of another feature (wrong ids).
   for (size_t i = 0; i + 7 < views.view1.size(); i += 33)
     std::swap(views.view1.uvs[i], views.view1.uvs[i + 7]);
-  Initializer init(options);
+  Initializer init(options.measurement(), options.initializer, 1);
   init.Process(0, 0.0, views.view0);
   const auto map = init.Process(1, 0.1, views.view1);
   ASSERT_TRUE(map.has_value()) << init.last_failure();
   const Pose3& est = map->second.world_from_camera;
   EXPECT_LT(RotationAngle(est.rotation().conjugate() * motion.rotation()), 1e-4);
   EXPECT_LT((est.translation().normalized() - motion.translation().normalized()).norm(), 1e-3);
+}
+
+// OpenCV's homography solver throws on fewer than four matches. Only options Check() refuses
+// (min_points under 8) let the initialiser hand it so few; the exception must end as a refused
+// attempt with its reason.
+TEST(Initializer, AnOpenCvExceptionIsARefusedAttempt) {
+  Options options = TestOptions();
+  options.initializer.min_points = 3;
+  std::string why;
+  ASSERT_FALSE(options.initializer.Check(&why));
+  SortedFeatures view0, view1;
+  for (VertexId id = 0; id < 3; ++id) {
+    view0.ids.push_back(id);
+    view0.uvs.emplace_back(100.0 + 150.0 * id, 120.0 + 90.0 * id);
+    view1.ids.push_back(id);
+    view1.uvs.push_back(view0.uvs.back() + Eigen::Vector2d(60.0, 10.0 * id));  // much motion
+  }
+  std::optional<TwoViewReconstruction> two_view;
+  EXPECT_NO_THROW(two_view = ReconstructTwoView(options.measurement(), options.initializer, view0,
+                                                view1, &why));
+  EXPECT_FALSE(two_view.has_value());
+  EXPECT_EQ(why.rfind("OpenCV error: ", 0), 0u) << why;
+
+  Initializer init(options.measurement(), options.initializer, 1);
+  std::optional<InitialMap> map;
+  EXPECT_NO_THROW(map = init.Process(0, 0.0, view0));
+  EXPECT_NO_THROW(map = init.Process(1, 0.5, view1));
+  EXPECT_FALSE(map.has_value());
+  EXPECT_EQ(init.last_failure().rfind("OpenCV error: ", 0), 0u) << init.last_failure();
 }
 
 }  // namespace

@@ -11,13 +11,14 @@
 
 #include <gtest/gtest.h>
 
+#include "m2s/common/numeric.h"
 #include "optimization/problems.h"
 
 namespace m2s::slam {
 namespace {
 
 constexpr KeyframeId kOldKeyframe = 0;
-constexpr KeyframeId kReferenceKeyframe = 40;  // > loop_min_keyframe_gap after kOldKeyframe
+constexpr KeyframeId kReferenceKeyframe = 40;  // > drift.min_keyframe_gap after kOldKeyframe
 constexpr VertexId kFirstOldId = 100000;
 
 struct Scene {
@@ -43,7 +44,7 @@ void AddPoints(const Camera& camera, int n, VertexId first_id, bool old, double 
   }
 }
 
-Options TrackerOptions() {
+Options TestOptions() {
   Options options;
   options.camera = Camera::FromHorizontalFov(640, 480, 90.0);
   options.pixel_sigma = 0.5;
@@ -106,7 +107,7 @@ Pose3 SolveOn(const Options& options, const Scene& scene,
   }
   PoseOnlyOptions po;
   po.pixel_sigma = options.pixel_sigma;
-  po.huber_delta_px = std::sqrt(5.991) * options.pixel_sigma;
+  po.huber_delta_px = std::sqrt(kChi2TwoDof95) * options.pixel_sigma;
   Pose3 camera_from_world;
   OptimizePose(options.camera, po, points, uvs, &camera_from_world);
   return camera_from_world.Inverse();
@@ -140,7 +141,7 @@ int InliersAt(const Camera& camera, const RecordedProblem& p, const Pose3& camer
   int n = 0;
   for (size_t i = 0; i < p.points.size(); ++i) {
     const Eigen::Vector3d pc = camera_from_world * p.points[i];
-    if (pc.z() > 0.0 && (camera.Project(pc) - p.uvs[i]).squaredNorm() <= 5.991) ++n;
+    if (pc.z() > 0.0 && (camera.Project(pc) - p.uvs[i]).squaredNorm() <= kChi2TwoDof95) ++n;
   }
   return n;
 }
@@ -149,7 +150,7 @@ TEST(Tracker, PoseSolveNeverEndsFarBelowItsPriorsInliers) {
   const Camera camera = Camera::FromHorizontalFov(640, 480, 90.0);
   PoseOnlyOptions options;  // as the tracker sets them for pixel_sigma 1
   options.pixel_sigma = 1.0;
-  options.huber_delta_px = std::sqrt(5.991);
+  options.huber_delta_px = std::sqrt(kChi2TwoDof95);
   for (const char* name : {"pose_prior_case_all.txt", "pose_prior_case_subset.txt"}) {
     SCOPED_TRACE(name);
     const RecordedProblem p = LoadRecorded(name);
@@ -170,7 +171,7 @@ TEST(Tracker, ConsistentDormantPointsJoinThePose) {
   // The recent points crowd one corner of the image (the camera turns into a new area), where
   // rotation and translation are hard to tell apart; the old points cover the whole image and
   // agree with them. Solving on the recent points alone (what tracking did before) is far off.
-  const Options options = TrackerOptions();
+  const Options options = TestOptions();
   std::mt19937 rng(7);
   Scene scene;
   AddPoints(options.camera, 80, 0, false, 560, 630, 400, 470, &rng, &scene);
@@ -178,7 +179,7 @@ TEST(Tracker, ConsistentDormantPointsJoinThePose) {
   Map map;
   InsertScene(
       scene, options.camera, [&](size_t i) { return scene.true_points[i]; }, &map);
-  Tracker tracker(options, &map);
+  Tracker tracker(options.measurement(), options.tracker, options.drift, &map);
   tracker.Start(kReferenceKeyframe, Pose3::Identity(), 80, 0.0, 2.0);
   const Pose3 truth(Eigen::Quaterniond(Eigen::AngleAxisd(0.01, Eigen::Vector3d::UnitY())),
                     Eigen::Vector3d(0.01, -0.005, 0.004));
@@ -198,7 +199,7 @@ TEST(Tracker, ConsistentDormantPointsJoinThePose) {
 TEST(Tracker, DriftedDormantPointsAreLeftOut) {
   // The old part of the map has drifted 4 cm: its points disagree with the recent ones, and
   // the pose follows the recent points (the drift check in mapping deals with the old ones).
-  const Options options = TrackerOptions();
+  const Options options = TestOptions();
   std::mt19937 rng(11);
   Scene scene;
   AddPoints(options.camera, 300, 0, false, 10, 630, 10, 470, &rng, &scene);
@@ -211,7 +212,7 @@ TEST(Tracker, DriftedDormantPointsAreLeftOut) {
   Map map;
   InsertScene(
       scene, options.camera, [&](size_t i) { return mapped[i]; }, &map);
-  Tracker tracker(options, &map);
+  Tracker tracker(options.measurement(), options.tracker, options.drift, &map);
   tracker.Start(kReferenceKeyframe, Pose3::Identity(), 300, 0.0, 2.0);
   const Pose3 truth(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.005, 0.0, 0.002));
   const SortedFeatures frame = Observe(scene, options.camera, truth, 0.5, &rng);
@@ -229,16 +230,16 @@ TEST(Tracker, DriftedDormantPointsAreLeftOut) {
 TEST(Tracker, FramesRecordAgainstAKeyframeStillQueuedForMapping) {
   // A keyframe candidate that mapping has not inserted yet is the reference of the next
   // frames; the recorded relative pose is taken from the pose the candidate was made with.
-  const Options options = TrackerOptions();
+  const Options options = TestOptions();
   std::mt19937 rng(3);
   Scene scene;
   AddPoints(options.camera, 400, 0, false, 10, 630, 10, 470, &rng, &scene);
   Map map;
   InsertScene(
       scene, options.camera, [&](size_t i) { return scene.true_points[i]; }, &map);
-  Tracker tracker(options, &map);
+  Tracker tracker(options.measurement(), options.tracker, options.drift, &map);
   tracker.Start(kReferenceKeyframe, Pose3::Identity(), 400, 0.0, 2.0);
-  // Past keyframe_max_interval_s: the first frame makes a keyframe.
+  // Past tracker.keyframe_max_interval_s: the first frame makes a keyframe.
   const Pose3 first(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.01, 0.0, 0.0));
   TrackerOutput made =
       tracker.Track(1, 2.0, Observe(scene, options.camera, first, 0.0, &rng), false);
@@ -254,6 +255,29 @@ TEST(Tracker, FramesRecordAgainstAKeyframeStillQueuedForMapping) {
   EXPECT_LT((out.reference_from_camera.translation() - expected.translation()).norm(), 1e-12);
   EXPECT_LT(out.reference_from_camera.rotation().angularDistance(expected.rotation()), 1e-12);
   EXPECT_LT(PositionError(candidate.world_from_camera * out.reference_from_camera, second), 1e-6);
+}
+
+// OpenCV's PnP asserts on fewer than four points. Only options Check() refuses (min_inliers
+// under 6) let relocalisation hand it so few; the exception must end as a lost frame.
+TEST(Tracker, AnOpenCvExceptionInRelocalisationIsALostFrame) {
+  Options options = TestOptions();
+  options.tracker.min_inliers = 3;
+  std::string why;
+  ASSERT_FALSE(options.tracker.Check(&why));
+  std::mt19937 rng(3);
+  Scene scene;
+  AddPoints(options.camera, 3, 0, /*old=*/false, 100, 500, 100, 400, &rng, &scene);
+  Map map;
+  InsertScene(
+      scene, options.camera, [&](size_t i) { return scene.true_points[i]; }, &map);
+  Tracker tracker(options.measurement(), options.tracker, options.drift, &map);
+  tracker.StartLost();
+  TrackerOutput out;
+  EXPECT_NO_THROW(out = tracker.Track(1, 0.1, Observe(scene, options.camera, Pose3(), 0.0, &rng),
+                                      /*mapping_busy=*/false));
+  EXPECT_EQ(out.state, TrackingState::kLost);
+  EXPECT_FALSE(out.keyframe.has_value());
+  EXPECT_TRUE(tracker.lost());
 }
 
 }  // namespace

@@ -1,0 +1,137 @@
+// Options of the SLAM library (m2s::slam): slam::Options holds the System's own settings (input,
+// queues, threads) and the measurement model every stage shares at the top level, and one
+// struct per stage (initialiser, tracker, mapper, drift corrector) as members. Each stage takes
+// only its own struct (and the shared MeasurementModel); every struct checks itself, and
+// Options::Check checks them all. Defaults are tuned on the default scene
+// (docs/results/slam_core.md).
+//
+// Thread-safety: plain values.
+//
+//   slam::Options options;
+//   options.camera = camera;
+//   options.tracker.min_inliers = 40;
+//   std::string why;
+//   if (!options.Check(&why)) { /* report why */ }
+#pragma once
+
+#include <string>
+
+#include "m2s/common/camera.h"
+
+namespace m2s::slam {
+
+// What every stage measures with: the camera, the assumed feature noise (it scales every
+// chi-square test) and the angle between rays a triangulated point needs.
+struct MeasurementModel {
+  Camera camera;
+  double pixel_sigma = 1.0;
+  double min_triangulation_parallax_deg = 1.0;
+};
+
+// Monocular initialisation (tracking/initializer.h).
+struct InitializerOptions {
+  // Shared features, median ray parallax, and the age (in frames) after which the reference
+  // frame is replaced. At 1 degree, 0.5 px of noise leaves the initial map's depths a few
+  // percent off, and the frames tracked on it before the first global BAs keep that (room-s2,
+  // 60 / 75 fps: ATE 5.6 / 6.2 mm at 1 degree, 1.5 / 1.2 mm at 1.5;
+  // docs/results/slam_realtime.md).
+  int min_points = 60;
+  double min_parallax_deg = 1.5;
+  int max_reference_age = 120;
+
+  bool Check(std::string* why) const;
+};
+
+// Frame-to-map tracking and the keyframe decision (tracking/tracker.h).
+struct TrackerOptions {
+  // Pose-only optimisation uses at most this many associated points (evenly spread over the
+  // frame's ids; 0: all). Bounded tracking time on dense frames.
+  int max_points = 600;
+  // A frame with fewer pose inliers than this is lost (and relocalisation needs as many).
+  int min_inliers = 30;
+  // Keyframe when the tracked points fall below this fraction of the reference keyframe's,
+  double keyframe_tracked_ratio = 0.9;
+  // or when this many features have no map point yet (and are seen by a keyframe),
+  int keyframe_min_new_points = 50;
+  // or when the camera moved this fraction of the median scene depth since the last one,
+  double keyframe_baseline_ratio = 0.1;
+  // or after this long (seconds).
+  double keyframe_max_interval_s = 1.0;
+
+  bool Check(std::string* why) const;
+};
+
+// Local mapping: triangulation, bundle adjustment and culling (mapping/local_mapper.h).
+struct MapperOptions {
+  // Local bundle adjustment: number of covisible keyframes optimised (others observing the
+  // points are held fixed).
+  int local_ba_window = 12;
+  // At most this many points enter a local BA (evenly spread over ids); the window's other
+  // points are re-triangulated from all their observers with the refined poses (0: no cap).
+  int local_ba_max_points = 2000;
+  // Threads Ceres may use in bundle adjustment (the initial two-view one too).
+  int num_ba_threads = 1;
+  // A keyframe is redundant when this fraction of its points is seen by >= 3 other keyframes
+  // (1.0: only fully redundant ones; with exact association every keyframe adds constraints,
+  // and culling at ORB-SLAM2's 0.9 costs accuracy under noise: docs/results/slam_core.md).
+  double keyframe_redundancy = 1.0;
+  // Bound on the map (oldest keyframes are culled beyond it).
+  int max_keyframes = 2000;
+
+  bool Check(std::string* why) const;
+};
+
+// Drift correction (mapping/drift_corrector.h): triggered when a keyframe re-observes at least
+// min_points points unseen for min_keyframe_gap keyframes, and their positions disagree with
+// the current estimate by more than min_error (fraction of the median depth).
+struct DriftOptions {
+  bool enabled = true;
+  int min_points = 30;
+  int min_keyframe_gap = 15;
+  double min_error = 0.01;
+
+  bool Check(std::string* why) const;
+};
+
+struct Options {
+  // ---- The measurement model, shared by every stage (see MeasurementModel) ----
+  Camera camera;
+  // Assumed feature noise in pixels; scales every chi-square test.
+  double pixel_sigma = 1.0;
+  // New points need this angle between their rays.
+  double min_triangulation_parallax_deg = 1.0;
+
+  // ---- The System: input, queues, threads ----
+  // Frames with more features than this are rejected (bounded work and memory).
+  int max_features_per_frame = 200000;
+  // Features may lie this far outside the image (noise) before the frame is rejected.
+  double image_margin_px = 16.0;
+  // SLAM uses at most this many features of a frame: those whose vertex ids rank lowest under
+  // a fixed hash, so the subset is the same in every view and spread over the image (0: all).
+  // Tracking and mapping cost scale with it; accuracy barely does (docs/RESULTS.md).
+  int feature_budget = 2000;
+  // Capacity of the latest-wins input queue used by Submit().
+  int input_queue_capacity = 2;
+  // Capacity of the keyframe queue in front of mapping.
+  int mapping_queue_capacity = 4;
+  // Run mapping and drift correction inline (bit-identical results) instead of in threads.
+  bool deterministic = false;
+  // Localisation only: track against a loaded map, never change it.
+  bool localization_only = false;
+  // Niceness added to the mapping thread (Linux; 0 keeps the caller's): tracking is the
+  // latency-critical stage, mapping takes the CPU that tracking leaves.
+  int mapping_nice = 5;
+
+  // ---- The stages ----
+  InitializerOptions initializer;
+  TrackerOptions tracker;
+  MapperOptions mapper;
+  DriftOptions drift;
+
+  MeasurementModel measurement() const {
+    return {camera, pixel_sigma, min_triangulation_parallax_deg};
+  }
+  bool Check(std::string* why) const;
+};
+
+}  // namespace m2s::slam
