@@ -81,10 +81,10 @@ TEST(BusAuthTest, EnvelopeLayoutOpensWithLibsodiumDirectly) {
                 0);
     } else {
       ad.insert(ad.end(), body, body + payload.size());
-      ASSERT_EQ(crypto_aead_xchacha20poly1305_ietf_decrypt_detached(
-                    nullptr, nullptr, nullptr, 0, tag, ad.data(), ad.size(), nonce,
-                    key.bytes.data()),
-                0);
+      ASSERT_EQ(
+          crypto_aead_xchacha20poly1305_ietf_decrypt_detached(
+              nullptr, nullptr, nullptr, 0, tag, ad.data(), ad.size(), nonce, key.bytes.data()),
+          0);
       plain.assign(body, body + payload.size());
     }
     EXPECT_EQ(plain, payload);
@@ -153,7 +153,7 @@ TEST(BusAuthTest, ReplayWindowTakesReorderedMessagesOnceAndRefusesOldOnes) {
   auto open = [&](int i) { return opener.Open("C", sealed[i].data(), sealed[i].size(), kNow); };
   // Counters 1..200 are sealed[0..199]. Deliver 100 first, then late ones inside the window.
   EXPECT_TRUE(open(99).ok());
-  EXPECT_TRUE(open(50).ok());   // 100 - 51 = 49 behind: inside the 64-wide window
+  EXPECT_TRUE(open(50).ok());  // 100 - 51 = 49 behind: inside the 64-wide window
   EXPECT_EQ(open(50).reason(), DropReason::kReplayed);
   EXPECT_EQ(open(20).reason(), DropReason::kReplayed);  // 80 behind: outside the window
   EXPECT_TRUE(open(100).ok());

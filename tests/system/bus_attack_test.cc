@@ -45,8 +45,8 @@ int RunScenario(const fs::path& dir, const std::string& key_args, const std::str
          << Bin("m2s_server") << " --lcm-url '" << kUrl << "' --stats-period 0 " << key_args
          << " --stats-out " << d << "/server.json 2> " << d << "/server.log &\n"
          << "server=$!\n"
-         << Bin("bus_attacker") << " --lcm-url '" << kUrl << "' --report " << d
-         << "/attack.json " << attacker_args << " 2> " << d << "/attacker.log &\n"
+         << Bin("bus_attacker") << " --lcm-url '" << kUrl << "' --report " << d << "/attack.json "
+         << attacker_args << " 2> " << d << "/attacker.log &\n"
          << "attacker=$!\n"
          << "sleep 0.5\n"  // the server subscribes before the client says HELLO
          << Bin("m2s_client") << " --lcm-url '" << kUrl << "' " << key_args << " " << client_args
@@ -73,8 +73,8 @@ struct Outcome {
   nlohmann::json attack, metrics, server;
 };
 
-Outcome RunAttack(const fs::path& dir, const std::string& key_args, const std::string& attacker_args,
-            const std::string& client_args) {
+Outcome RunAttack(const fs::path& dir, const std::string& key_args,
+                  const std::string& attacker_args, const std::string& client_args) {
   Outcome o;
   o.client_rc = RunScenario(dir, key_args, attacker_args, client_args);
   o.server_rc = testing::ReadFile(dir / "server.rc");
@@ -126,8 +126,7 @@ TEST(BusAttackTest, KeyedBusIgnoresAStrayPublisherAndItsReplays) {
   EXPECT_EQ(metrics["sessions"].get<int>(), 1);  // nothing ended or reset it
   EXPECT_EQ(metrics["server_restarts"].get<int>(), 0);
   // The server refused every forged message before decoding, and every replay.
-  EXPECT_EQ(server["drops"]["not_authenticated"].get<int>(),
-            attack["to_server_forged"].get<int>());
+  EXPECT_EQ(server["drops"]["not_authenticated"].get<int>(), attack["to_server_forged"].get<int>());
   EXPECT_EQ(server["drops"]["replayed"].get<int>(), attack["to_server_replayed"].get<int>());
   EXPECT_EQ(server["drops_total"].get<int>(), server["drops"]["not_authenticated"].get<int>() +
                                                   server["drops"]["replayed"].get<int>());

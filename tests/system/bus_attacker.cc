@@ -202,9 +202,8 @@ int main(int argc, char** argv) {
       const int64_t instance = watcher.server_instance();
       send(wire::kSessionChannel, wire::Encode(Control(session_control_t::RESET, session, 0)),
            false);
-      send(wire::kSessionChannel, fake_envelope(wire::Encode(Control(session_control_t::BYE,
-                                                                     session, 0))),
-           false);
+      send(wire::kSessionChannel,
+           fake_envelope(wire::Encode(Control(session_control_t::BYE, session, 0))), false);
       wire::FeatureFrame frame;
       frame.session_id = session;
       frame.seq = INT64_MAX - 1;
@@ -216,8 +215,8 @@ int main(int argc, char** argv) {
       pose.server_instance = instance;
       pose.seq = 1 + round;
       pose.state = pose_estimate_t::STATE_OK;
-      pose.world_from_camera = wire::ToMessage(Pose3(Eigen::Quaterniond::Identity(),
-                                                     Eigen::Vector3d(3.0, -2.0, 1.0)));
+      pose.world_from_camera =
+          wire::ToMessage(Pose3(Eigen::Quaterniond::Identity(), Eigen::Vector3d(3.0, -2.0, 1.0)));
       send(wire::kPoseChannel, wire::Encode(pose), false);
       send(wire::kPoseChannel, fake_envelope(wire::Encode(pose)), false);
       send(wire::kSessionChannel,

@@ -183,8 +183,8 @@ void ClientSession::CheckAnsweredLocked(double now_s) {
   }
   ++counters_.server_restarts;
   new_session_pending_ = true;
-  M2S_LOG(kWarning) << "no answer from the server for " << now_s - last_answer_s_
-                    << " s (session " << session_id_ << "); starting a new session";
+  M2S_LOG(kWarning) << "no answer from the server for " << now_s - last_answer_s_ << " s (session "
+                    << session_id_ << "); starting a new session";
 }
 
 void ClientSession::OnMessage(const std::string& channel, const uint8_t* data, size_t size) {

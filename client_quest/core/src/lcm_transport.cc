@@ -64,8 +64,8 @@ void LcmTransport::Stop() {
 }
 
 void LcmTransport::OnRaw(const lcm::ReceiveBuffer* buffer, const std::string& channel) {
-  auto opened = opener_.Open(channel, static_cast<const uint8_t*>(buffer->data),
-                             buffer->data_size, wire::WallClockMicros());
+  auto opened = opener_.Open(channel, static_cast<const uint8_t*>(buffer->data), buffer->data_size,
+                             wire::WallClockMicros());
   if (!opened) {
     refused_.fetch_add(1);
     return;

@@ -150,11 +150,11 @@ Expected<HeadlessResult> RunHeadless(const HeadlessOptions& options) {
   session.End();
   if (result.counters.poses_received == 0 && !records.empty()) {
     const client::ClientCounters& c = result.counters;
-    return Status::Error(
-        "no server answered: " + std::to_string(records.size()) + " frames sent, " +
-        std::to_string(c.acks) + " HELLO acknowledgements, " + std::to_string(c.rejected) +
-        " refusals (server full), " + std::to_string(c.refused_by_transport) +
-        " messages refused by the bus checks (wrong key?)");
+    return Status::Error("no server answered: " + std::to_string(records.size()) +
+                         " frames sent, " + std::to_string(c.acks) + " HELLO acknowledgements, " +
+                         std::to_string(c.rejected) + " refusals (server full), " +
+                         std::to_string(c.refused_by_transport) +
+                         " messages refused by the bus checks (wrong key?)");
   }
   info.sessions = result.counters.sessions_started;
   info.server_restarts = result.counters.server_restarts;

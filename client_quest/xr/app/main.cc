@@ -113,8 +113,8 @@ int main(int argc, char** argv) {
     return 2;
   }
   if (!key_file_flag.empty()) key_file = key_file_flag;
-  auto security = m2s::wire::MakeBusSecurity(key_file, encrypt || encrypt_flag,
-                                             options.bus.opener.max_age_s);
+  auto security =
+      m2s::wire::MakeBusSecurity(key_file, encrypt || encrypt_flag, options.bus.opener.max_age_s);
   if (!security) {
     std::cerr << "m2s_xr_client: " << security.error() << "\n";
     return 2;

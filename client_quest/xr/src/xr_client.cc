@@ -324,8 +324,8 @@ Status XrRun::RenderFrame() {
     if (seq) ++result_.frames_sent;
   }
   const auto t2 = Clock::now();
-  overlay_.Update(*link_->session, frame.index % options_.align_every_frames == 0,
-                  overlay_visible_, renderer_.get());
+  overlay_.Update(*link_->session, frame.index % options_.align_every_frames == 0, overlay_visible_,
+                  renderer_.get());
   overlay_ms_.push_back(MsSince(t2));
   if (frame.should_render) {
     for (int eye = 0; eye < 2; ++eye) {
@@ -402,8 +402,7 @@ Expected<XrClientResult> XrRun::Finish() {
 }
 
 Status XrRun::WriteOutputs(const headless::RunInfo& info, const headless::RunMetrics& metrics,
-                           const std::vector<std::string>& state_log,
-                           const std::string& runtime) {
+                           const std::vector<std::string>& state_log, const std::string& runtime) {
   const nlohmann::json json = {{"runtime", runtime},
                                {"transport", info.transport},
                                {"projector", projector_name_},
@@ -433,8 +432,7 @@ Status XrRun::WriteOutputs(const headless::RunInfo& info, const headless::RunMet
                 "m2s_xr_client: %lld frames (%lld sent, %lld rendered), %lld OpenXR session(s), "
                 "ATE %.4f m; render thread p50/p95: projection %.2f/%.2f ms, hand-off "
                 "%.3f/%.3f ms, overlay %.3f/%.3f ms; outputs in %s",
-                static_cast<long long>(result_.frames),
-                static_cast<long long>(result_.frames_sent),
+                static_cast<long long>(result_.frames), static_cast<long long>(result_.frames_sent),
                 static_cast<long long>(result_.frames_rendered),
                 static_cast<long long>(result_.sessions), result_.ate_rmse,
                 result_.projection.p50_ms, result_.projection.p95_ms, result_.handoff.p50_ms,

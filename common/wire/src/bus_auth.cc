@@ -41,7 +41,7 @@ uint64_t GetU64(const uint8_t* in) {
 }
 
 std::array<uint8_t, crypto_aead_xchacha20poly1305_ietf_NPUBBYTES> Nonce(uint64_t sender,
-                                                                         uint64_t counter) {
+                                                                        uint64_t counter) {
   std::array<uint8_t, crypto_aead_xchacha20poly1305_ietf_NPUBBYTES> nonce{};
   PutU64(nonce.data(), sender);
   PutU64(nonce.data() + 8, counter);
@@ -129,8 +129,8 @@ std::vector<uint8_t> BusSealer::Seal(std::string_view channel,
   return Seal(channel, payload.data(), payload.size(), WallClockMicros());
 }
 
-std::vector<uint8_t> BusSealer::Seal(std::string_view channel, const uint8_t* payload,
-                                     size_t size, int64_t wall_us) const {
+std::vector<uint8_t> BusSealer::Seal(std::string_view channel, const uint8_t* payload, size_t size,
+                                     int64_t wall_us) const {
   if (!key_) return std::vector<uint8_t>(payload, payload + size);
   const uint64_t counter = counter_.fetch_add(1) + 1;
   std::vector<uint8_t> out(kEnvelopeOverhead + size);
@@ -147,15 +147,15 @@ std::vector<uint8_t> BusSealer::Seal(std::string_view channel, const uint8_t* pa
   std::vector<uint8_t> ad = AssociatedData(channel, header);
   if (encrypt_) {
     crypto_aead_xchacha20poly1305_ietf_encrypt_detached(body, tag, nullptr, payload, size,
-                                                        ad.data(), ad.size(), nullptr,
-                                                        nonce.data(), key_->bytes.data());
+                                                        ad.data(), ad.size(), nullptr, nonce.data(),
+                                                        key_->bytes.data());
   } else {
     if (size > 0) std::memcpy(body, payload, size);
     ad.insert(ad.end(), payload, payload + size);
     uint8_t no_ciphertext = 0;  // libsodium wants a valid pointer even for 0 bytes
     crypto_aead_xchacha20poly1305_ietf_encrypt_detached(&no_ciphertext, tag, nullptr, nullptr, 0,
-                                                        ad.data(), ad.size(), nullptr,
-                                                        nonce.data(), key_->bytes.data());
+                                                        ad.data(), ad.size(), nullptr, nonce.data(),
+                                                        key_->bytes.data());
   }
   return out;
 }
@@ -192,8 +192,7 @@ DecodeResult<OpenedMessage> BusOpener::Open(std::string_view channel, const uint
   }
   const uint8_t* header = data;
   if (header[4] != kEnvelopeVersion || (header[5] & ~kFlagEncrypted) != 0) {
-    return Fail<OpenedMessage>(DropReason::kNotAuthenticated,
-                               "envelope version or flags unknown");
+    return Fail<OpenedMessage>(DropReason::kNotAuthenticated, "envelope version or flags unknown");
   }
   const bool encrypted = (header[5] & kFlagEncrypted) != 0;
   const uint64_t sender = GetU64(header + 6);
@@ -208,8 +207,8 @@ DecodeResult<OpenedMessage> BusOpener::Open(std::string_view channel, const uint
   if (encrypted) {
     opened.plaintext.resize(body_size);
     verified = crypto_aead_xchacha20poly1305_ietf_decrypt_detached(
-        opened.plaintext.data(), nullptr, body, body_size, tag, ad.data(), ad.size(),
-        nonce.data(), key_->bytes.data());
+        opened.plaintext.data(), nullptr, body, body_size, tag, ad.data(), ad.size(), nonce.data(),
+        key_->bytes.data());
   } else {
     ad.insert(ad.end(), body, body + body_size);
     const uint8_t no_ciphertext = 0;  // libsodium wants a valid pointer even for 0 bytes
@@ -226,9 +225,9 @@ DecodeResult<OpenedMessage> BusOpener::Open(std::string_view channel, const uint
     const double age_s =
         std::abs(static_cast<double>(now_wall_us) - static_cast<double>(sent_us)) * 1e-6;
     if (age_s > options_.max_age_s) {
-      return Fail<OpenedMessage>(DropReason::kStale, "message on " + std::string(channel) +
-                                                         " sent " + std::to_string(age_s) +
-                                                         " s from now");
+      return Fail<OpenedMessage>(
+          DropReason::kStale,
+          "message on " + std::string(channel) + " sent " + std::to_string(age_s) + " s from now");
     }
   }
   {
@@ -236,9 +235,9 @@ DecodeResult<OpenedMessage> BusOpener::Open(std::string_view channel, const uint
     auto it = senders_.find(sender);
     if (it == senders_.end()) {
       if (!MakeRoom(now_wall_us)) {
-        return Fail<OpenedMessage>(DropReason::kTooManySenders,
-                                   "sender table full (" + std::to_string(options_.max_senders) +
-                                       " fresh senders)");
+        return Fail<OpenedMessage>(
+            DropReason::kTooManySenders,
+            "sender table full (" + std::to_string(options_.max_senders) + " fresh senders)");
       }
       it = senders_.emplace(sender, SenderState{}).first;
       it->second.seen.assign(static_cast<size_t>(options_.replay_window + 63) / 64, 0);
@@ -301,9 +300,9 @@ bool BusOpener::MakeRoom(int64_t now_wall_us) {
     return static_cast<int>(senders_.size()) < options_.max_senders;
   }
   // Without a freshness check nothing is safe to forget; the least recently seen goes.
-  auto oldest = std::min_element(senders_.begin(), senders_.end(), [](const auto& a, const auto& b) {
-    return a.second.last_wall_us < b.second.last_wall_us;
-  });
+  auto oldest = std::min_element(
+      senders_.begin(), senders_.end(),
+      [](const auto& a, const auto& b) { return a.second.last_wall_us < b.second.last_wall_us; });
   senders_.erase(oldest);
   return true;
 }

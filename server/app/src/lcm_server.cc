@@ -24,7 +24,8 @@ LcmServerOptions WithInstance(LcmServerOptions options) {
 
 LcmServer::LcmServer(LcmServerOptions options, SystemFactory factory)
     : options_(WithInstance(std::move(options))),
-      sealer_(options_.bus.key, options_.bus.encrypt, static_cast<uint64_t>(options_.server.server_instance)),
+      sealer_(options_.bus.key, options_.bus.encrypt,
+              static_cast<uint64_t>(options_.server.server_instance)),
       opener_(options_.bus.key, options_.bus.opener),
       factory_(std::move(factory)) {}
 
@@ -53,8 +54,8 @@ Status LcmServer::Start() {
   M2S_LOG(kInfo) << "m2s server " << manager_->server_instance() << " listening on "
                  << options_.lcm_url
                  << (options_.bus.key ? (options_.bus.encrypt ? " (authenticated, encrypted)"
-                                                      : " (authenticated)")
-                                  : "");
+                                                              : " (authenticated)")
+                                      : "");
   if (!options_.bus.key) {
     M2S_LOG(kWarning) << "NO BUS KEY: messages are neither authenticated nor replay-checked; "
                          "anyone on this LCM network can end, reset or feed sessions. Use "
@@ -77,8 +78,8 @@ void LcmServer::Stop() {
 }
 
 void LcmServer::OnRaw(const lcm::ReceiveBuffer* buffer, const std::string& channel) {
-  auto opened = opener_.Open(channel, static_cast<const uint8_t*>(buffer->data),
-                             buffer->data_size, wire::WallClockMicros());
+  auto opened = opener_.Open(channel, static_cast<const uint8_t*>(buffer->data), buffer->data_size,
+                             wire::WallClockMicros());
   if (!opened) return manager_->Drop(opened.reason(), opened.error());
   manager_->HandleMessage(channel, opened->data, opened->size, opened->sender);
 }

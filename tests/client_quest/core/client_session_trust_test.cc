@@ -88,9 +88,9 @@ TEST(ClientSessionTrustTest, MessagesFromAnotherInstanceChangeNothing) {
   ASSERT_EQ(session.server_instance(), kServer);
   const int64_t id = session.session_id();
   ASSERT_TRUE(session.Send(Frame(0)).ok());
-  transport.Pose(kStranger, id, 1);                            // forged pose
+  transport.Pose(kStranger, id, 1);                                    // forged pose
   transport.Control(session_control_t::SESSION_ENDED, kStranger, id);  // forged end
-  transport.Control(session_control_t::REJECTED, kServer, id);  // a refusal after the ack
+  transport.Control(session_control_t::REJECTED, kServer, id);         // a refusal after the ack
   EXPECT_FALSE(session.Records()[0].answered);
   ASSERT_TRUE(session.Send(Frame(1)).ok());
   EXPECT_EQ(session.session_id(), id);  // the session goes on
@@ -142,7 +142,7 @@ TEST(ClientSessionTrustTest, ASessionTheServerStopsAnsweringIsRenewed) {
   const int64_t first = session.session_id();
   ASSERT_TRUE(session.Send(Frame(0)).ok());
   transport.Pose(kServer, first, 1);
-  ASSERT_TRUE(session.Send(Frame(1)).ok());  // never answered
+  ASSERT_TRUE(session.Send(Frame(1)).ok());                     // never answered
   std::this_thread::sleep_for(std::chrono::milliseconds(100));  // twice the timeout
   ASSERT_TRUE(session.Send(Frame(2)).ok());
   EXPECT_NE(session.session_id(), first);

@@ -36,8 +36,9 @@ class Replayer {
   explicit Replayer(const ReplayOptions& options)
       : options_(options),
         server_options_(ForReplay(options.server)),
-        manager_(server_options_, [this](const std::string& channel,
-                                         std::vector<uint8_t> bytes) { OnPublish(channel, bytes); }) {}
+        manager_(server_options_, [this](const std::string& channel, std::vector<uint8_t> bytes) {
+          OnPublish(channel, bytes);
+        }) {}
 
   // Reads every event; returns where and how the log broke (empty when it did not).
   std::string Feed(wire::LcmLogReader* log, uint64_t file_size, ReplayResult* result);
@@ -129,16 +130,15 @@ std::string Replayer::Feed(wire::LcmLogReader* log, uint64_t file_size, ReplayRe
     if (!log->Next(&event)) {
       if (!log->error().empty()) {
         problem = "log " + options_.log_path + " broken at byte " + std::to_string(position) +
-                  " of " + std::to_string(file_size) + " (after " +
-                  std::to_string(result->events) + " events): truncated or corrupt event (" +
-                  log->error() + "); the events before it are used";
+                  " of " + std::to_string(file_size) + " (after " + std::to_string(result->events) +
+                  " events): truncated or corrupt event (" + log->error() +
+                  "); the events before it are used";
       }
       break;
     }
     if (event.skipped_bytes > 0 && problem.empty()) {
-      problem = "log " + options_.log_path + " corrupt at byte " + std::to_string(position) +
-                ": " + std::to_string(event.skipped_bytes) +
-                " bytes skipped to the next valid event";
+      problem = "log " + options_.log_path + " corrupt at byte " + std::to_string(position) + ": " +
+                std::to_string(event.skipped_bytes) + " bytes skipped to the next valid event";
     }
     ++result->events;
     if (event.channel == wire::kFrameChannel) {

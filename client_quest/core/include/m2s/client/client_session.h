@@ -58,9 +58,9 @@ struct ClientSessionOptions {
 
 // What happened to one sent frame.
 struct FrameRecord {
-  int64_t seq = 0;         // client-wide: records[seq - 1]
+  int64_t seq = 0;  // client-wide: records[seq - 1]
   int64_t session_id = 0;
-  int64_t wire_seq = 0;    // the sequence number in its session (what the server sees)
+  int64_t wire_seq = 0;  // the sequence number in its session (what the server sees)
   int64_t capture_time_us = 0;
   std::optional<Pose3> ground_truth_world_from_camera;
   int64_t send_wall_us = 0;
@@ -80,8 +80,8 @@ struct ClientCounters {
   int64_t sessions_started = 0;
   int64_t server_restarts = 0;  // sessions given up: the server stopped answering
   int64_t sessions_ended_by_server = 0;
-  int64_t rejected = 0;  // REJECTED by the server (e.g. full)
-  int64_t acks = 0;      // HELLO_ACKs received for our sessions
+  int64_t rejected = 0;                 // REJECTED by the server (e.g. full)
+  int64_t acks = 0;                     // HELLO_ACKs received for our sessions
   int64_t foreign_server_messages = 0;  // for our session, from another server instance
   int64_t poses_received = 0;
   int64_t deltas_applied = 0;
@@ -90,7 +90,7 @@ struct ClientCounters {
   int64_t resync_requests = 0;
   int64_t stats_received = 0;
   int64_t other_session_messages = 0;
-  int64_t bad_messages = 0;  // failed to decode or validate, any channel
+  int64_t bad_messages = 0;          // failed to decode or validate, any channel
   int64_t refused_by_transport = 0;  // failed authentication / replay checks (keyed bus)
 };
 
@@ -143,9 +143,9 @@ class ClientSession {
   bool acked_ = false;
   bool new_session_pending_ = false;
   int64_t next_seq_ = 1;
-  int64_t session_first_seq_ = 1;  // client-wide seq of the session's first frame
-  double last_answer_s_ = 0.0;     // HELLO or the last answer of the owning server
-  bool outstanding_ = false;       // frames sent since that answer
+  int64_t session_first_seq_ = 1;     // client-wide seq of the session's first frame
+  double last_answer_s_ = 0.0;        // HELLO or the last answer of the owning server
+  bool outstanding_ = false;          // frames sent since that answer
   std::vector<FrameRecord> records_;  // records_[seq - 1]
   ClientCounters counters_;
   double last_resync_s_ = -1e9;

@@ -30,7 +30,7 @@ struct HeadlessOptions {
   bool fast = false;
   bool on_device = true;
   std::string lcm_url = wire::kDefaultLcmUrl;
-  wire::BusSecurityOptions bus;  // LCM only: key, encryption, replay checks
+  wire::BusSecurityOptions bus;   // LCM only: key, encryption, replay checks
   std::string projector = "gpu";  // "gpu" (CPU fallback when EGL fails) or "cpu"
   ProjectorOptions projector_options;
   FeatureNoiseOptions noise;

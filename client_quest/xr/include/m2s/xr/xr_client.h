@@ -24,10 +24,10 @@
 #include <string>
 #include <vector>
 
+#include "m2s/common/bus_auth.h"
 #include "m2s/common/camera.h"
 #include "m2s/common/feature_noise.h"
 #include "m2s/common/projector.h"
-#include "m2s/common/bus_auth.h"
 #include "m2s/common/status.h"
 #include "m2s/common/wire_format.h"
 #include "m2s/server_app/session_manager.h"
