@@ -50,15 +50,11 @@ int main(int argc, char** argv) {
   app.add_option("--seed", options.noise.seed, "Noise seed");
   double duration_s = 0;
   app.add_option("--duration", duration_s, "Only the first S seconds of the trajectory");
-  app.add_option("--budget", options.noise.budget, "At most N features per frame, spread evenly");
-  auto* feature_budget_opt =
-      app.add_option("--feature-budget", options.server.slam.feature_budget,
-                     "On-device SLAM uses at most N features a frame, chosen by id hash (0: all)")
-          ->capture_default_str();
-  auto* send_budget_opt =
-      app.add_option("--send-budget", options.send_budget,
-                     "Send at most N features a frame, the same id-hash choice (0: all; default: "
-                     "--feature-budget)");
+  int budget = options.server.slam.feature_budget;
+  app.add_option("--budget", budget,
+                 "At most N features a frame, sent and used by SLAM: the balanced, id-stable "
+                 "selection (0: all)")
+      ->capture_default_str();
   std::string key_file;
   bool encrypt = false;
   double max_message_age_s = options.bus.opener.max_age_s;
@@ -75,8 +71,7 @@ int main(int argc, char** argv) {
   app.add_flag(
       "--no-map-png", [&options](int64_t) { options.render_map = false; }, "Do not render map.png");
   CLI11_PARSE(app, argc, argv);
-  if (feature_budget_opt->count() > 0 && send_budget_opt->count() == 0)
-    options.send_budget = options.server.slam.feature_budget;
+  options.send_budget = options.server.slam.feature_budget = budget;
 
   if (!camera_json.empty()) {
     auto camera = m2s::ReadCameraJson(camera_json);
@@ -111,7 +106,7 @@ int main(int argc, char** argv) {
     return 1;
   }
   if (!result->notice.empty()) std::cerr << "m2s_client: " << result->notice << "\n";
-  std::cout << m2s::headless::SummaryLine(result->metrics, options.out_dir) << "\n";
+  std::cout << m2s::reporting::SummaryLine(result->metrics, options.out_dir) << "\n";
   if (!result->metrics.map_png.empty()) std::cout << "map: " << result->metrics.map_png << "\n";
   std::cout << "trajectory: " << result->metrics.trajectory_png << "\n";
   return 0;

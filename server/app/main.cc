@@ -1,72 +1,72 @@
 // m2s_server: the Mesh2SLAM SLAM server on LCM.
 //
 //   m2s_server [--lcm-url URL] [--config FILE] [--max-sessions N] [--session-timeout S]
-//              [--save-maps DIR] [--max-features N] [--feature-budget N] [--stats-period S]
+//              [--save-maps DIR] [--max-features N] [--budget N] [--stats-period S]
 //              [--key-file FILE [--encrypt] [--max-message-age S]] [--stats-out FILE.json]
 //
 // --key-file: the bus's shared secret (head -c 32 /dev/urandom > key); every message in and
 // out is authenticated and replay-checked (common/bus_auth.h). Without it the bus is open.
 //
-// --config reads a YAML/JSON file (cv::FileStorage) whose keys are the flag names with
-// underscores (max_sessions, session_timeout, max_features, feature_budget, stats_period,
-// map_rate_hz, queue_capacity, deterministic, num_ba_threads, max_keyframes, drift_correction,
-// mapping_nice); flags given
-// on the command line win. SIGINT / SIGTERM stop the server cleanly.
+// --config reads a JSON object whose keys are the flag names with underscores (max_sessions,
+// session_timeout, max_features, budget, stats_period, lcm_url, save_maps,
+// deterministic) plus map_rate_hz, queue_capacity, num_ba_threads, max_keyframes,
+// drift_correction and mapping_nice; flags given on the command line win; an unknown key or a
+// value of the wrong type is an error. SIGINT / SIGTERM stop the server cleanly.
 #include <csignal>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <set>
+#include <string>
 
 #include <CLI/CLI.hpp>
-#include <opencv2/core.hpp>
+#include <nlohmann/json.hpp>
 
 #include "m2s/server_app/lcm_server.h"
 
 namespace {
 
-// Applies the config file's values to the options that were not given as flags.
-bool ReadConfig(const std::string& path, const CLI::App& app, m2s::server_app::LcmServerOptions* o,
-                std::string* why) {
-  cv::FileStorage fs;
-  try {
-    if (!fs.open(path, cv::FileStorage::READ)) {
-      *why = "cannot open config file " + path;
-      return false;
-    }
-  } catch (const cv::Exception& e) {
-    *why = "cannot parse config file " + path + ": " + e.what();
-    return false;
-  }
-  auto given = [&app](const char* flag) { return app.count(flag) > 0; };
-  auto read_int = [&fs](const char* key, int* value) {
-    if (!fs[key].empty()) *value = static_cast<int>(fs[key]);
-  };
-  auto read_double = [&fs](const char* key, double* value) {
-    if (!fs[key].empty()) *value = static_cast<double>(fs[key]);
-  };
-  auto read_bool = [&fs](const char* key, bool* value) {
-    if (!fs[key].empty()) *value = static_cast<int>(fs[key]) != 0;
-  };
+// Applies the JSON config file's values to the options that were not given as flags. Unknown
+// keys and values of the wrong type are errors (a misspelt option must not pass silently).
+m2s::Status ReadConfig(const std::string& path, const CLI::App& app,
+                       m2s::server_app::LcmServerOptions* o) {
+  std::ifstream file(path);
+  if (!file) return m2s::Status::Error("cannot open config file " + path);
   m2s::server_app::ServerOptions& s = o->server;
-  if (!given("--max-sessions")) read_int("max_sessions", &s.max_sessions);
-  if (!given("--session-timeout")) read_double("session_timeout", &s.session_timeout_s);
-  if (!given("--max-features")) read_int("max_features", &s.max_features);
-  if (!given("--feature-budget")) read_int("feature_budget", &s.slam.feature_budget);
-  if (!given("--stats-period")) read_double("stats_period", &o->stats_period_s);
-  if (!given("--lcm-url") && !fs["lcm_url"].empty()) {
-    o->lcm_url = static_cast<std::string>(fs["lcm_url"]);
+  auto given = [&app](const char* flag) { return app.count(flag) > 0; };
+  try {
+    const nlohmann::json j = nlohmann::json::parse(file);
+    if (!j.is_object()) return m2s::Status::Error("config file " + path + ": not a JSON object");
+    auto read = [&j](const char* key, auto* value) {
+      if (j.contains(key)) j.at(key).get_to(*value);
+    };
+    if (!given("--max-sessions")) read("max_sessions", &s.max_sessions);
+    if (!given("--session-timeout")) read("session_timeout", &s.session_timeout_s);
+    if (!given("--max-features")) read("max_features", &s.max_features);
+    if (!given("--budget")) read("budget", &s.slam.feature_budget);
+    if (!given("--stats-period")) read("stats_period", &o->stats_period_s);
+    if (!given("--lcm-url")) read("lcm_url", &o->lcm_url);
+    if (!given("--save-maps")) read("save_maps", &s.save_maps_dir);
+    if (!given("--deterministic")) read("deterministic", &s.slam.deterministic);
+    read("map_rate_hz", &s.map_rate_hz);
+    read("queue_capacity", &s.queue_capacity);
+    read("num_ba_threads", &s.slam.mapper.num_ba_threads);
+    read("max_keyframes", &s.slam.mapper.max_keyframes);
+    read("drift_correction", &s.slam.drift.enabled);
+    read("mapping_nice", &s.slam.mapping_nice);
+    static const std::set<std::string> kKeys = {
+        "max_sessions",   "session_timeout", "max_features",     "budget",      "stats_period",
+        "lcm_url",        "save_maps",       "deterministic",    "map_rate_hz", "queue_capacity",
+        "num_ba_threads", "max_keyframes",   "drift_correction", "mapping_nice"};
+    for (const auto& [key, value] : j.items()) {
+      if (!kKeys.contains(key)) {
+        return m2s::Status::Error("config file " + path + ": unknown key \"" + key + "\"");
+      }
+    }
+  } catch (const nlohmann::json::exception& e) {
+    return m2s::Status::Error("config file " + path + ": " + e.what());
   }
-  if (!given("--save-maps") && !fs["save_maps"].empty()) {
-    s.save_maps_dir = static_cast<std::string>(fs["save_maps"]);
-  }
-  read_double("map_rate_hz", &s.map_rate_hz);
-  read_int("queue_capacity", &s.queue_capacity);
-  read_bool("deterministic", &s.slam.deterministic);
-  read_int("num_ba_threads", &s.slam.mapper.num_ba_threads);
-  read_int("max_keyframes", &s.slam.mapper.max_keyframes);
-  read_bool("drift_correction", &s.slam.drift.enabled);
-  read_int("mapping_nice", &s.slam.mapping_nice);
-  return true;
+  return m2s::Status::Ok();
 }
 
 }  // namespace
@@ -76,14 +76,15 @@ int main(int argc, char** argv) {
   std::string config;
   CLI::App app{"Mesh2SLAM server: vertex-feature frames in, poses and map deltas out, over LCM"};
   app.add_option("--lcm-url", options.lcm_url, "LCM URL (udpm://...?ttl=0, memq://, file://)");
-  app.add_option("--config", config, "YAML/JSON file with server options");
+  app.add_option("--config", config,
+                 "JSON file with server options (keys: the flags' names with _)");
   app.add_option("--max-sessions", options.server.max_sessions, "Concurrent sessions");
   app.add_option("--session-timeout", options.server.session_timeout_s,
                  "End a session after this many seconds without messages");
   app.add_option("--save-maps", options.server.save_maps_dir,
                  "Save each session's map into this folder when it ends");
   app.add_option("--max-features", options.server.max_features, "Largest frame accepted");
-  app.add_option("--feature-budget", options.server.slam.feature_budget,
+  app.add_option("--budget", options.server.slam.feature_budget,
                  "SLAM uses at most N features a frame, chosen by id hash (0: all)");
   app.add_option("--stats-period", options.stats_period_s, "Seconds between stats (0: never)");
   app.add_flag("--deterministic", options.server.slam.deterministic,
@@ -105,10 +106,11 @@ int main(int argc, char** argv) {
   }
   options.bus = *security;
 
-  std::string why;
-  if (!config.empty() && !ReadConfig(config, app, &options, &why)) {
-    std::cerr << "m2s_server: " << why << "\n";
-    return 2;
+  if (!config.empty()) {
+    if (m2s::Status read = ReadConfig(config, app, &options); !read) {
+      std::cerr << "m2s_server: " << read.message() << "\n";
+      return 2;
+    }
   }
   if (!options.server.save_maps_dir.empty()) {
     std::error_code ec;
@@ -119,8 +121,8 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
-  if (!options.server.Check(&why)) {
-    std::cerr << "m2s_server: " << why << "\n";
+  if (m2s::Status valid = options.server.Check(); !valid) {
+    std::cerr << "m2s_server: " << valid.message() << "\n";
     return 2;
   }
 

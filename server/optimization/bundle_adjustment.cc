@@ -128,23 +128,20 @@ int SolvePass(const Camera& camera, const BundleAdjustmentOptions& options,
 
 }  // namespace
 
-bool BundleAdjustmentOptions::Check(std::string* why) const {
-  auto fail = [why](const char* message) {
-    if (why != nullptr) *why = message;
-    return false;
-  };
+Status BundleAdjustmentOptions::Check() const {
   if (!(huber_delta_px > 0.0) || !std::isfinite(huber_delta_px)) {
-    return fail("BundleAdjustmentOptions: huber_delta_px must be positive and finite");
+    return Status::Error("BundleAdjustmentOptions: huber_delta_px must be positive and finite");
   }
   if (!(chi2_threshold > 0.0) || !std::isfinite(chi2_threshold)) {
-    return fail("BundleAdjustmentOptions: chi2_threshold must be positive and finite");
+    return Status::Error("BundleAdjustmentOptions: chi2_threshold must be positive and finite");
   }
   if (!(pixel_sigma > 0.0) || !std::isfinite(pixel_sigma)) {
-    return fail("BundleAdjustmentOptions: pixel_sigma must be positive and finite");
+    return Status::Error("BundleAdjustmentOptions: pixel_sigma must be positive and finite");
   }
-  if (max_iterations < 1) return fail("BundleAdjustmentOptions: max_iterations must be >= 1");
-  if (num_threads < 1) return fail("BundleAdjustmentOptions: num_threads must be >= 1");
-  return true;
+  if (max_iterations < 1)
+    return Status::Error("BundleAdjustmentOptions: max_iterations must be >= 1");
+  if (num_threads < 1) return Status::Error("BundleAdjustmentOptions: num_threads must be >= 1");
+  return Status::Ok();
 }
 
 BundleAdjustmentResult BundleAdjust(const Camera& camera, const BundleAdjustmentOptions& options,
@@ -154,7 +151,7 @@ BundleAdjustmentResult BundleAdjust(const Camera& camera, const BundleAdjustment
   if (problem == nullptr) return result;
   const size_t num_observations = problem->observations.size();
   result.outlier.assign(num_observations, true);
-  if (!options.Check(nullptr) || !camera.Check(nullptr)) return result;
+  if (!options.Check() || !camera.Check()) return result;
   const int num_keyframes = static_cast<int>(problem->keyframes.size());
   const int num_points = static_cast<int>(problem->points.size());
   for (const BaObservation& observation : problem->observations) {

@@ -23,12 +23,11 @@ Sim3 Sim3FromParameters(const double* p) {
               Eigen::Vector3d(p[4], p[5], p[6]));
 }
 
-bool PoseGraphOptions::Check(std::string* why) const {
+Status PoseGraphOptions::Check() const {
   if (max_iterations < 1) {
-    if (why != nullptr) *why = "PoseGraphOptions: max_iterations must be at least 1";
-    return false;
+    return Status::Error("PoseGraphOptions: max_iterations must be at least 1");
   }
-  return true;
+  return Status::Ok();
 }
 
 namespace {
@@ -44,7 +43,7 @@ PoseGraphResult OptimizePoseGraph(const PoseGraphOptions& options,
                                   std::vector<PoseGraphNode>* nodes,
                                   const std::vector<PoseGraphEdge>& edges) {
   PoseGraphResult result;
-  if (nodes == nullptr || !options.Check(nullptr)) return result;
+  if (nodes == nullptr || !options.Check()) return result;
   const int num_nodes = static_cast<int>(nodes->size());
   for (const PoseGraphNode& node : *nodes) {
     if (!Valid(node.world_from_camera)) return result;

@@ -201,25 +201,21 @@ bool SolveRoundCeres(const Camera& camera, const PoseOnlyOptions& options,
 
 }  // namespace
 
-bool PoseOnlyOptions::Check(std::string* why) const {
-  auto fail = [why](const char* message) {
-    if (why != nullptr) *why = message;
-    return false;
-  };
+Status PoseOnlyOptions::Check() const {
   if (!(huber_delta_px > 0.0) || !std::isfinite(huber_delta_px)) {
-    return fail("PoseOnlyOptions: huber_delta_px must be positive and finite");
+    return Status::Error("PoseOnlyOptions: huber_delta_px must be positive and finite");
   }
   if (!(chi2_threshold > 0.0) || !std::isfinite(chi2_threshold)) {
-    return fail("PoseOnlyOptions: chi2_threshold must be positive and finite");
+    return Status::Error("PoseOnlyOptions: chi2_threshold must be positive and finite");
   }
   if (!(pixel_sigma > 0.0) || !std::isfinite(pixel_sigma)) {
-    return fail("PoseOnlyOptions: pixel_sigma must be positive and finite");
+    return Status::Error("PoseOnlyOptions: pixel_sigma must be positive and finite");
   }
-  if (rounds < 1) return fail("PoseOnlyOptions: rounds must be at least 1");
+  if (rounds < 1) return Status::Error("PoseOnlyOptions: rounds must be at least 1");
   if (max_iterations_per_round < 1) {
-    return fail("PoseOnlyOptions: max_iterations_per_round must be at least 1");
+    return Status::Error("PoseOnlyOptions: max_iterations_per_round must be at least 1");
   }
-  return true;
+  return Status::Ok();
 }
 
 PoseOnlyResult OptimizePose(const Camera& camera, const PoseOnlyOptions& options,
@@ -230,7 +226,7 @@ PoseOnlyResult OptimizePose(const Camera& camera, const PoseOnlyOptions& options
   const size_t n = points_world.size();
   result.inlier.assign(n, false);
   if (camera_from_world == nullptr || observations_uv.size() != n ||
-      !camera_from_world->AllFinite() || !options.Check(nullptr) || !camera.Check(nullptr)) {
+      !camera_from_world->AllFinite() || !options.Check() || !camera.Check()) {
     return result;
   }
   // Non-finite inputs are outliers from the start; everything else starts as an inlier.

@@ -32,7 +32,7 @@ struct PoseOnlyOptions {
   // no allocation per iteration); true: the same problem on Ceres (reference, ~10x slower).
   bool use_ceres = false;
 
-  bool Check(std::string* why) const;
+  Status Check() const;
 };
 
 struct PoseOnlyResult {
@@ -79,7 +79,7 @@ struct BundleAdjustmentOptions {
   // After the first solve, drop chi-square outliers and solve again (ORB-SLAM2's two passes).
   bool second_pass_without_outliers = true;
   // With no fixed keyframe, the first one is held fixed to remove the gauge freedom.
-  bool Check(std::string* why) const;
+  Status Check() const;
 };
 
 struct BundleAdjustmentResult {
@@ -109,7 +109,7 @@ struct PoseGraphEdge {
 };
 struct PoseGraphOptions {
   int max_iterations = 50;
-  bool Check(std::string* why) const;
+  Status Check() const;
 };
 struct PoseGraphResult {
   bool success = false;

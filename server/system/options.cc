@@ -6,10 +6,9 @@
 namespace m2s::slam {
 namespace {
 
-// Writes `message` (prefixed with the struct's name) to `why`; returns false.
-bool Fail(std::string* why, const char* prefix, const char* message) {
-  if (why != nullptr) *why = std::string(prefix) + message;
-  return false;
+// An error whose message names the struct.
+Status Fail(const char* prefix, const char* message) {
+  return Status::Error(std::string(prefix) + message);
 }
 
 // NaN is not positive.
@@ -33,78 +32,82 @@ const char* ToString(TrackingState state) {
   return "unknown";
 }
 
-bool InitializerOptions::Check(std::string* why) const {
+Status InitializerOptions::Check() const {
   constexpr char kName[] = "InitializerOptions: ";
-  if (min_points < 8) return Fail(why, kName, "min_points must be at least 8");
-  if (!Positive(min_parallax_deg)) return Fail(why, kName, "min_parallax_deg must be positive");
-  if (max_reference_age < 2) return Fail(why, kName, "max_reference_age must be at least 2");
-  return true;
+  if (min_points < 8) return Fail(kName, "min_points must be at least 8");
+  if (!Positive(min_parallax_deg)) return Fail(kName, "min_parallax_deg must be positive");
+  if (max_reference_age < 2) return Fail(kName, "max_reference_age must be at least 2");
+  return Status::Ok();
 }
 
-bool TrackerOptions::Check(std::string* why) const {
+Status TrackerOptions::Check() const {
   constexpr char kName[] = "TrackerOptions: ";
-  if (max_points < 0) return Fail(why, kName, "max_points must be >= 0 (0: all)");
-  if (min_inliers < 6) return Fail(why, kName, "min_inliers must be at least 6");
+  if (max_points < 0) return Fail(kName, "max_points must be >= 0 (0: all)");
+  if (min_inliers < 6) return Fail(kName, "min_inliers must be at least 6");
   if (!(keyframe_tracked_ratio > 0.0 && keyframe_tracked_ratio <= 1.0)) {
-    return Fail(why, kName, "keyframe_tracked_ratio must be in (0, 1]");
+    return Fail(kName, "keyframe_tracked_ratio must be in (0, 1]");
   }
   if (keyframe_min_new_points < 1) {
-    return Fail(why, kName, "keyframe_min_new_points must be positive");
+    return Fail(kName, "keyframe_min_new_points must be positive");
   }
   if (!Positive(keyframe_baseline_ratio)) {
-    return Fail(why, kName, "keyframe_baseline_ratio must be positive");
+    return Fail(kName, "keyframe_baseline_ratio must be positive");
   }
   if (!Positive(keyframe_max_interval_s)) {
-    return Fail(why, kName, "keyframe_max_interval_s must be positive");
+    return Fail(kName, "keyframe_max_interval_s must be positive");
   }
-  return true;
+  return Status::Ok();
 }
 
-bool MapperOptions::Check(std::string* why) const {
+Status MapperOptions::Check() const {
   constexpr char kName[] = "MapperOptions: ";
-  if (local_ba_window < 2) return Fail(why, kName, "local_ba_window must be at least 2");
-  if (local_ba_max_points < 0) return Fail(why, kName, "local_ba_max_points must be >= 0");
-  if (num_ba_threads <= 0) return Fail(why, kName, "num_ba_threads must be positive");
+  if (local_ba_window < 2) return Fail(kName, "local_ba_window must be at least 2");
+  if (local_ba_max_points < 0) return Fail(kName, "local_ba_max_points must be >= 0");
+  if (num_ba_threads <= 0) return Fail(kName, "num_ba_threads must be positive");
   if (!(keyframe_redundancy > 0.0 && keyframe_redundancy <= 1.0)) {
-    return Fail(why, kName, "keyframe_redundancy must be in (0, 1]");
+    return Fail(kName, "keyframe_redundancy must be in (0, 1]");
   }
-  if (max_keyframes < 2) return Fail(why, kName, "max_keyframes must be at least 2");
-  return true;
+  if (max_keyframes < 2) return Fail(kName, "max_keyframes must be at least 2");
+  return Status::Ok();
 }
 
-bool DriftOptions::Check(std::string* why) const {
+Status DriftOptions::Check() const {
   constexpr char kName[] = "DriftOptions: ";
-  if (min_points < 6) return Fail(why, kName, "min_points must be at least 6");
-  if (min_keyframe_gap < 2) return Fail(why, kName, "min_keyframe_gap must be at least 2");
-  if (!Positive(min_error)) return Fail(why, kName, "min_error must be positive");
-  return true;
+  if (min_points < 6) return Fail(kName, "min_points must be at least 6");
+  if (min_keyframe_gap < 2) return Fail(kName, "min_keyframe_gap must be at least 2");
+  if (!Positive(min_error)) return Fail(kName, "min_error must be positive");
+  return Status::Ok();
 }
 
-bool Options::Check(std::string* why) const {
+Status Options::Check() const {
   constexpr char kName[] = "Options: ";
-  if (!camera.Check(why)) return false;
+  if (Status s = camera.Check(); !s) return s;
   if (!Positive(pixel_sigma) || !std::isfinite(pixel_sigma)) {
-    return Fail(why, kName, "pixel_sigma must be positive and finite");
+    return Fail(kName, "pixel_sigma must be positive and finite");
   }
   if (!Positive(min_triangulation_parallax_deg)) {
-    return Fail(why, kName, "min_triangulation_parallax_deg must be positive");
+    return Fail(kName, "min_triangulation_parallax_deg must be positive");
   }
   if (max_features_per_frame <= 0) {
-    return Fail(why, kName, "max_features_per_frame must be positive");
+    return Fail(kName, "max_features_per_frame must be positive");
   }
-  if (!(image_margin_px >= 0.0)) return Fail(why, kName, "image_margin_px must be >= 0");
-  if (feature_budget < 0) return Fail(why, kName, "feature_budget must be >= 0 (0: all features)");
+  if (!(image_margin_px >= 0.0)) return Fail(kName, "image_margin_px must be >= 0");
+  if (feature_budget < 0) return Fail(kName, "feature_budget must be >= 0 (0: all features)");
   if (feature_budget > 0 && feature_budget < initializer.min_points) {
-    return Fail(why, kName, "feature_budget must be at least initializer.min_points");
+    return Fail(kName, "feature_budget must be at least initializer.min_points");
   }
-  if (input_queue_capacity <= 0) return Fail(why, kName, "input_queue_capacity must be positive");
+  if (input_queue_capacity <= 0) return Fail(kName, "input_queue_capacity must be positive");
   if (mapping_queue_capacity < 1) {
-    return Fail(why, kName, "mapping_queue_capacity must be positive");
+    return Fail(kName, "mapping_queue_capacity must be positive");
   }
   if (mapping_nice < 0 || mapping_nice > 19) {
-    return Fail(why, kName, "mapping_nice must be in [0, 19]");
+    return Fail(kName, "mapping_nice must be in [0, 19]");
   }
-  return initializer.Check(why) && tracker.Check(why) && mapper.Check(why) && drift.Check(why);
+  for (const Status& stage :
+       {initializer.Check(), tracker.Check(), mapper.Check(), drift.Check()}) {
+    if (!stage) return stage;
+  }
+  return Status::Ok();
 }
 
 }  // namespace m2s::slam

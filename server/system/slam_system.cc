@@ -27,15 +27,14 @@ double MsSince(std::chrono::steady_clock::time_point t0) {
 }  // namespace
 
 Expected<std::unique_ptr<System>> System::Create(const Options& options) {
-  std::string why;
-  if (!options.Check(&why))
-    return Expected<std::unique_ptr<System>>::Error("invalid SLAM options: " + why);
+  if (Status valid = options.Check(); !valid) return valid.Prefixed("invalid SLAM options: ");
   return std::unique_ptr<System>(std::make_unique<SlamSystem>(options));
 }
 
 SlamSystem::SlamSystem(const Options& options)
     : options_(options),
       validator_(options.camera, options.max_features_per_frame, options.image_margin_px),
+      budget_grid_(FeatureGrid::ForImage(options.camera.width, options.camera.height)),
       initializer_(options.measurement(), options.initializer, options.mapper.num_ba_threads),
       tracker_(options.measurement(), options.tracker, options.drift, &map_),
       mapper_(options.measurement(), options.mapper, options.drift, &map_),
@@ -134,17 +133,21 @@ TrackResult SlamSystem::TrackLocked(const Frame& frame) {
     result.reject_reason = "shut_down";
     return result;
   }
+  {
+    std::lock_guard<std::mutex> s(stats_mutex_);
+    ++stats_.frames_processed;
+  }
   SortedFeatures features;
-  const std::string why = validator_.Validate(frame, &features);
-  if (!why.empty()) {
+  if (const Status valid = validator_.Validate(frame, &features); !valid) {
+    const char* reason = ToString(*valid.reason());
     result.state = TrackingState::kRejected;
-    result.reject_reason = why;
+    result.reject_reason = reason;
     std::lock_guard<std::mutex> s(stats_mutex_);
     ++stats_.frames_rejected;
-    ++stats_.rejected_by_reason[why];
+    ++stats_.rejected_by_reason[reason];
     return result;
   }
-  if (const size_t removed = ApplyFeatureBudget(options_.feature_budget, &features)) {
+  if (const size_t removed = ApplyFeatureBudget(options_.feature_budget, budget_grid_, &features)) {
     std::lock_guard<std::mutex> s(stats_mutex_);
     stats_.features_over_budget += static_cast<int64_t>(removed);
   }

@@ -15,6 +15,7 @@
 #include <thread>
 #include <vector>
 
+#include "m2s/common/feature_rank.h"
 #include "m2s/slam/system.h"
 #include "map/map.h"
 #include "mapping/local_mapper.h"
@@ -68,6 +69,7 @@ class SlamSystem final : public System {
   Options options_;
   Map map_;
   FrameValidator validator_;
+  FeatureGrid budget_grid_;  // the feature budget's cells, from the camera
   Initializer initializer_;
   Tracker tracker_;
   LocalMapper mapper_;

@@ -1,23 +1,23 @@
 #include "tracking/feature_budget.h"
 
-#include "m2s/common/feature_rank.h"
+#include <vector>
 
 namespace m2s::slam {
 
-size_t ApplyFeatureBudget(int budget, SortedFeatures* features) {
+size_t ApplyFeatureBudget(int budget, const FeatureGrid& grid, SortedFeatures* features) {
   const size_t n = features->size();
   if (budget <= 0 || n <= static_cast<size_t>(budget)) return 0;
-  const uint64_t threshold = FeatureRankThreshold(features->ids, budget);
-  size_t out = 0;
-  for (size_t i = 0; i < n; ++i) {
-    if (FeatureRank(features->ids[i]) > threshold) continue;
-    features->ids[out] = features->ids[i];
-    features->uvs[out] = features->uvs[i];
-    ++out;
+  std::vector<int> cells(n);
+  for (size_t i = 0; i < n; ++i) cells[i] = grid.CellOf(features->uvs[i].x(), features->uvs[i].y());
+  const std::vector<uint32_t> kept = SelectBalanced(features->ids, cells, budget);
+  // `kept` is ascending, so compacting in place keeps the order by id.
+  for (size_t k = 0; k < kept.size(); ++k) {
+    features->ids[k] = features->ids[kept[k]];
+    features->uvs[k] = features->uvs[kept[k]];
   }
-  features->ids.resize(out);
-  features->uvs.resize(out);
-  return n - out;
+  features->ids.resize(kept.size());
+  features->uvs.resize(kept.size());
+  return n - kept.size();
 }
 
 }  // namespace m2s::slam

@@ -2,12 +2,12 @@
 //
 // A frame is rejected (whole) when it is empty, has more features than allowed, a non-finite
 // uv or timestamp, a feature farther than the margin outside the image, a duplicated id, or
-// when its seq / timestamp goes back. Rejection reasons are short stable strings, counted per
-// reason in SystemStats::rejected_by_reason.
+// when its seq / timestamp goes back. Each rejection carries its DropReason (the code shared
+// with the wire decoders), counted by name in SystemStats::rejected_by_reason.
 //
 //   FrameValidator validator(camera, max_features_per_frame, image_margin_px);
 //   SortedFeatures features;
-//   if (std::string why = validator.Validate(frame, &features); !why.empty()) { reject(why); }
+//   if (Status valid = validator.Validate(frame, &features); !valid) reject(*valid.reason());
 #pragma once
 
 #include <cstdint>
@@ -17,6 +17,7 @@
 
 #include <Eigen/Core>
 
+#include "m2s/common/status.h"
 #include "m2s/slam/system.h"
 
 namespace m2s::slam {
@@ -35,9 +36,9 @@ class FrameValidator {
   FrameValidator(const Camera& camera, int max_features, double image_margin_px)
       : camera_(camera), max_features_(max_features), image_margin_px_(image_margin_px) {}
 
-  // Empty string when the frame is valid (then `out` holds its sorted features and the frame
-  // becomes the latest accepted one); otherwise the reason, and nothing changes.
-  std::string Validate(const Frame& frame, SortedFeatures* out);
+  // OK when the frame is valid (then `out` holds its sorted features and the frame becomes the
+  // latest accepted one); otherwise an error with its reason code, and nothing changes.
+  Status Validate(const Frame& frame, SortedFeatures* out);
   void Reset() { last_seq_.reset(), last_timestamp_.reset(); }
 
  private:

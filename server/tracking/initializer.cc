@@ -20,10 +20,7 @@ constexpr double kMinGoodFraction = 0.9;   // of the model's inliers
 constexpr int kMaxMatches = 1000;          // subsampled beyond this (RANSAC cost)
 constexpr int kMotionCheckPoints = 200;    // inliers that rank the candidate motions
 // Refusals of the cheap gates, before any RANSAC (Process treats them apart).
-constexpr char kTooFewShared[] = "too few shared features";
-constexpr char kTooLittleMotion[] = "too little image motion";
-// Prefix of the reason when an OpenCV solver threw.
-constexpr char kOpenCvError[] = "OpenCV error: ";
+using RefusalKind = TwoViewRefusal::Kind;
 // After a refused attempt, retry when the parallax extrapolated linearly in time since the
 // reference reaches this fraction of the bound, and at least this often.
 constexpr double kRetryParallaxFraction = 0.8;
@@ -133,21 +130,23 @@ MotionCheck CheckMotion(const MeasurementModel& model, const Matches& m,
 // ReconstructTwoView without the boundary that turns OpenCV's exceptions into a refusal.
 std::optional<TwoViewReconstruction> ReconstructTwoViewUnguarded(
     const MeasurementModel& model, const InitializerOptions& options, const SortedFeatures& view0,
-    const SortedFeatures& view1, std::string* why, double* median_parallax_deg) {
-  auto fail = [why](const char* reason) -> std::optional<TwoViewReconstruction> {
-    if (why) *why = reason;
+    const SortedFeatures& view1, TwoViewRefusal* refusal, double* median_parallax_deg) {
+  auto fail = [refusal](RefusalKind kind,
+                        const std::string& message) -> std::optional<TwoViewReconstruction> {
+    if (refusal) *refusal = {kind, message};
     return std::nullopt;
   };
   if (median_parallax_deg) *median_parallax_deg = 0.0;
   const Matches m = Intersect(view0, view1);
   const int n = static_cast<int>(m.ids.size());
-  if (n < options.min_points) return fail(kTooFewShared);
+  if (n < options.min_points) return fail(RefusalKind::kTooFewShared, "too few shared features");
   // Cheap gate: with less image motion than a fraction of the parallax bound there is no
   // chance of enough parallax (rotation can only add image motion, not parallax).
   std::vector<double> flow(n);
   for (int i = 0; i < n; ++i) flow[i] = cv::norm(m.p1[i] - m.p0[i]);
   const double min_flow = 0.25 * model.camera.fx * options.min_parallax_deg * M_PI / 180.0;
-  if (Median(std::move(flow)) < min_flow) return fail(kTooLittleMotion);
+  if (Median(std::move(flow)) < min_flow)
+    return fail(RefusalKind::kTooLittleMotion, "too little image motion");
 
   cv::Mat k_cv;
   cv::eigen2cv(model.camera.K(), k_cv);
@@ -155,7 +154,8 @@ std::optional<TwoViewReconstruction> ReconstructTwoViewUnguarded(
   cv::Mat e_mask, h_mask;
   const cv::Mat e_cv = cv::findEssentialMat(m.p0, m.p1, k_cv, cv::RANSAC, 0.999, sigma, e_mask);
   const cv::Mat h_cv = cv::findHomography(m.p0, m.p1, cv::RANSAC, 2.0 * sigma, h_mask, 2000, 0.999);
-  if (e_cv.rows != 3 && h_cv.empty()) return fail("no epipolar or homography model");
+  if (e_cv.rows != 3 && h_cv.empty())
+    return fail(RefusalKind::kNoModel, "no epipolar or homography model");
 
   Eigen::Matrix3d k = model.camera.K();
   double score_e = 0.0, score_h = 0.0;
@@ -169,7 +169,7 @@ std::optional<TwoViewReconstruction> ReconstructTwoViewUnguarded(
     cv::cv2eigen(h_cv, h);
     score_h = ScoreHomography(h, m, sigma);
   }
-  if (score_e + score_h <= 0.0) return fail("no model explains the matches");
+  if (score_e + score_h <= 0.0) return fail(RefusalKind::kNoModel, "no model explains the matches");
   const bool prefer_h = score_h / (score_e + score_h) > kHomographyRatio;
 
   // Motions of one model, checked by triangulation; the best must be unique. When the
@@ -256,7 +256,7 @@ std::optional<TwoViewReconstruction> ReconstructTwoViewUnguarded(
     chosen = try_model(!prefer_h, &reason_other);
     use_h = !prefer_h;
   }
-  if (!chosen) return fail(reason_preferred.c_str());
+  if (!chosen) return fail(RefusalKind::kNoModel, reason_preferred);
   const MotionCheck& best = *chosen;
 
   TwoViewReconstruction out;
@@ -270,7 +270,7 @@ std::optional<TwoViewReconstruction> ReconstructTwoViewUnguarded(
     out.points.push_back(best.points[i]);
   }
   if (static_cast<int>(out.ids.size()) < options.min_points) {
-    return fail("too few points with enough parallax");
+    return fail(RefusalKind::kNoModel, "too few points with enough parallax");
   }
   return out;
 }
@@ -279,13 +279,13 @@ std::optional<TwoViewReconstruction> ReconstructTwoViewUnguarded(
 
 std::optional<TwoViewReconstruction> ReconstructTwoView(
     const MeasurementModel& model, const InitializerOptions& options, const SortedFeatures& view0,
-    const SortedFeatures& view1, std::string* why, double* median_parallax_deg) {
+    const SortedFeatures& view1, TwoViewRefusal* refusal, double* median_parallax_deg) {
   try {
-    return ReconstructTwoViewUnguarded(model, options, view0, view1, why, median_parallax_deg);
+    return ReconstructTwoViewUnguarded(model, options, view0, view1, refusal, median_parallax_deg);
   } catch (const cv::Exception& e) {
     // Degenerate input (OpenCV asserts on it): a refused attempt, never a thrown frame.
     M2S_LOG(kWarning) << "two-view reconstruction: OpenCV error: " << e.what();
-    if (why) *why = std::string(kOpenCvError) + e.what();
+    if (refusal) *refusal = {RefusalKind::kSolverError, std::string("OpenCV error: ") + e.what()};
     return std::nullopt;
   }
 }
@@ -308,14 +308,15 @@ std::optional<InitialMap> Initializer::Process(int64_t seq, double timestamp,
     if (frames_since_reference_ > options_.max_reference_age) set_reference();
     return std::nullopt;
   }
-  std::string why;
+  TwoViewRefusal refusal;
   double parallax = 0.0;
   auto two_view =
-      ReconstructTwoView(model_, options_, reference_->features, features, &why, &parallax);
+      ReconstructTwoView(model_, options_, reference_->features, features, &refusal, &parallax);
   if (!two_view) {
-    last_failure_ = why;
+    last_failure_ = refusal.message;
+    const bool too_few_shared = refusal.kind == RefusalKind::kTooFewShared;
     // Refusals that ran the RANSACs mostly mean "not enough parallax yet": retry when it may be.
-    if (why != kTooFewShared && why != kTooLittleMotion) {
+    if (!too_few_shared && refusal.kind != RefusalKind::kTooLittleMotion) {
       const double elapsed = timestamp - reference_->timestamp;
       double wait = kMaxInitRetryDelayS;
       if (parallax > 0.0 && elapsed > 0.0) {
@@ -325,8 +326,8 @@ std::optional<InitialMap> Initializer::Process(int64_t seq, double timestamp,
       next_attempt_time_ = timestamp + wait;
     }
     M2S_LOG(kDebug) << "initialisation with frames " << reference_->seq << " and " << seq
-                    << " refused: " << why;
-    if (frames_since_reference_ > options_.max_reference_age || why == kTooFewShared) {
+                    << " refused: " << refusal.message;
+    if (frames_since_reference_ > options_.max_reference_age || too_few_shared) {
       set_reference();
     }
     return std::nullopt;

@@ -34,14 +34,27 @@ struct TwoViewReconstruction {
   bool used_homography = false;
 };
 
+// Why two views were not reconstructed: the kind decides what the initialiser does next, the
+// message is for the log.
+struct TwoViewRefusal {
+  enum class Kind {
+    kTooFewShared,     // fewer shared ids than InitializerOptions::min_points
+    kTooLittleMotion,  // the image motion cannot give the parallax needed
+    kNoModel,          // the RANSACs ran and no motion explains the views well enough
+    kSolverError,      // an OpenCV solver refused the input (degenerate configuration)
+  };
+  Kind kind = Kind::kNoModel;
+  std::string message;
+};
+
 // Two-view reconstruction from matched features (matched by id). nullopt, with the reason in
-// `why`, when the views cannot be reconstructed reliably; `median_parallax_deg` (optional)
-// receives the parallax of the best motion when one was triangulated (else 0).
-// Points need half the model's min_triangulation_parallax_deg (the initial map is refined by
-// a full bundle adjustment).
+// `refusal` (optional), when the views cannot be reconstructed reliably; `median_parallax_deg`
+// (optional) receives the parallax of the best motion when one was triangulated (else 0). Points
+// need half the model's min_triangulation_parallax_deg (the initial map is refined by a full bundle
+// adjustment).
 std::optional<TwoViewReconstruction> ReconstructTwoView(
     const MeasurementModel& model, const InitializerOptions& options, const SortedFeatures& view0,
-    const SortedFeatures& view1, std::string* why, double* median_parallax_deg = nullptr);
+    const SortedFeatures& view1, TwoViewRefusal* refusal, double* median_parallax_deg = nullptr);
 
 struct InitialFrame {
   int64_t seq = 0;

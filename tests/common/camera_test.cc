@@ -88,22 +88,22 @@ TEST(CameraTest, FromGlProjectionInvertsGlProjection) {
 }
 
 TEST(CameraTest, CheckRejectsBadCameras) {
-  std::string why;
-  EXPECT_TRUE(Camera().Check(&why));
+  Status why;
+  EXPECT_TRUE((why = Camera().Check()));
   Camera c;
   c.width = 0;
-  EXPECT_FALSE(c.Check(&why));
-  EXPECT_FALSE(why.empty());
+  EXPECT_FALSE((why = c.Check()));
+  EXPECT_FALSE(why.message().empty());
   c = Camera();
   c.fx = NAN;
-  EXPECT_FALSE(c.Check(&why));
+  EXPECT_FALSE((why = c.Check()));
   c = Camera();
   c.near = 2;
   c.far = 1;
-  EXPECT_FALSE(c.Check(&why));
+  EXPECT_FALSE((why = c.Check()));
   c = Camera();
   c.near = 0;
-  EXPECT_FALSE(c.Check(&why));
+  EXPECT_FALSE((why = c.Check()));
 }
 
 TEST(CameraIoTest, ReadsCameraJsonAndRejectsBadFiles) {

@@ -151,8 +151,11 @@ TEST(Evaluation, NoisyEstimateEqualsEvoApeWithScaleCorrection) {
   EXPECT_NEAR(r->scale, evo.scale(), 1e-9);
   EXPECT_NEAR(r->ate.rmse, std::sqrt(sse / errors.size()), 1e-9);
   EXPECT_NEAR(r->ate.sse, sse, 1e-9);
-  EXPECT_GT(r->ate.rmse, 0.01);  // the noise is really there
-  EXPECT_LT(r->ate.rmse, 0.2);
+  // The noise is really there, at its size: 0.02 m per axis in the estimate frame is
+  // sqrt(3) * 0.02 / 0.37 = 0.094 m after the alignment undoes the scale (measured 0.090 m;
+  // 15 % is about 4 standard errors of an rmse over 300 residuals).
+  const double expected_rmse = std::sqrt(3.0) * 0.02 / 0.37;
+  EXPECT_NEAR(r->ate.rmse, expected_rmse, 0.15 * expected_rmse);
 }
 
 TEST(Evaluation, AssociationFollowsEvo) {

@@ -83,12 +83,16 @@ TEST(Percentile, FloatValues) {
   EXPECT_EQ(Percentile(std::vector<float>{}, 0.95, PercentileMethod::kRoundedRank), 0.0f);
 }
 
-TEST(ChiSquare, BoundsAreTheTabulatedQuantiles) {
-  EXPECT_DOUBLE_EQ(kChi2OneDof95, 3.841);
-  EXPECT_DOUBLE_EQ(kChi2TwoDof95, 5.991);
-  EXPECT_DOUBLE_EQ(kChi2SixDof999, 22.46);
-  // For 2 dof the quantile has a closed form: -2 ln(1 - p).
-  EXPECT_NEAR(kChi2TwoDof95, -2.0 * std::log(0.05), 1e-3);
+TEST(ChiSquare, BoundsAreTheQuantilesTheyName) {
+  // Each constant against the chi-square CDF at it, in closed form: erf(sqrt(x / 2)) for 1
+  // dof, 1 - exp(-x / 2) sum_{i < k/2} (x / 2)^i / i! for an even number k of dof. The
+  // constants are rounded to 4 digits: the tolerance is the CDF's slope there times that
+  // rounding (3.0e-2 x 5e-4, 2.5e-2 x 5e-4 and 4.2e-4 x 5e-3), rounded up.
+  EXPECT_NEAR(std::erf(std::sqrt(kChi2OneDof95 / 2)), 0.95, 2e-5);
+  const double h2 = kChi2TwoDof95 / 2;
+  EXPECT_NEAR(1 - std::exp(-h2), 0.95, 2e-5);
+  const double h6 = kChi2SixDof999 / 2;
+  EXPECT_NEAR(1 - std::exp(-h6) * (1 + h6 + h6 * h6 / 2), 0.999, 3e-6);
 }
 
 TEST(LookAt, LooksAtTheTargetWithUpUp) {

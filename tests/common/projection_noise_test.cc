@@ -46,9 +46,11 @@ TEST(FeatureNoiseTest, PixelNoiseHasTheRequestedSigmaAndZeroMean) {
   }
   const double n = 2.0 * input.size();
   const double mean = sum / n, sigma = std::sqrt(sum_sq / n - mean * mean);
-  EXPECT_NEAR(mean, 0.0, 0.01);
-  EXPECT_NEAR(sigma, 0.7, 0.7 * 0.02);
-  EXPECT_NEAR(cross / input.size() / (0.7 * 0.7), 0.0, 0.03);  // u and v independent
+  // Bounds of about 4 standard errors of each estimate over the 80000 offsets (measured:
+  // mean -0.0015, sigma 0.6981, correlation -0.0045, each within 1.1 standard errors).
+  EXPECT_NEAR(mean, 0.0, 4 * 0.7 / std::sqrt(n));
+  EXPECT_NEAR(sigma, 0.7, 4 * 0.7 / std::sqrt(2 * n));
+  EXPECT_NEAR(cross / input.size() / (0.7 * 0.7), 0.0, 4 / std::sqrt(n / 2));  // u, v independent
 }
 
 TEST(FeatureNoiseTest, NoiseNeverLeavesTheImage) {
@@ -56,8 +58,13 @@ TEST(FeatureNoiseTest, NoiseNeverLeavesTheImage) {
   options.pixel_noise_sigma = 20.0;
   std::vector<ProjectedVertex> features = MakeFeatures(5000, 0.0);
   ApplyFeatureNoise(options, kCamera, kNumSceneVertices, 0, &features);
-  EXPECT_LT(features.size(), 5000u);
-  EXPECT_GT(features.size(), 4000u);
+  // Uniform in [0, L) with N(0, s) noise, a point leaves across the two edges with probability
+  // 2 s / (L sqrt(2 pi)): 2.49 % across u, 3.32 % across v, so 4713 of the 5000 stay (measured
+  // 4702); the bound is 4 standard errors.
+  const double stay =
+      (1 - 2 * 20.0 / (640 * std::sqrt(2 * M_PI))) * (1 - 2 * 20.0 / (480 * std::sqrt(2 * M_PI)));
+  EXPECT_NEAR(static_cast<double>(features.size()), 5000 * stay,
+              4 * std::sqrt(5000 * stay * (1 - stay)));
   for (const ProjectedVertex& f : features) EXPECT_TRUE(kCamera.InImage(f.u, f.v));
 }
 
@@ -107,7 +114,8 @@ TEST(FeatureNoiseTest, WrongIdsHaveTheRequestedFractionAndStayUnique) {
       EXPECT_EQ(input_ids.count(f.id), 0u) << "wrong id taken from the frame";
     }
   }
-  EXPECT_NEAR(static_cast<double>(wrong) / input.size(), 0.1, 0.01);
+  // Measured 0.1022; the bound is 4 standard errors of a fraction over 40000 features.
+  EXPECT_NEAR(static_cast<double>(wrong) / input.size(), 0.1, 4 * std::sqrt(0.1 * 0.9 / 40000));
 
   // With no free id in the scene, features chosen for a wrong id are dropped.
   std::vector<ProjectedVertex> full;
@@ -145,59 +153,11 @@ TEST(FeatureNoiseTest, QuantisationSnapsToCellCentres) {
         mean_error += quantised - original;
       }
     }
-    EXPECT_NEAR(mean_error / (2.0 * out.size()), 0.0, 0.05 * q);  // unbiased
+    // Unbiased: the error is uniform in [-q/2, q/2) (standard deviation q / sqrt(12)); the
+    // bound is 4 standard errors of the mean of the 10000 errors (measured -0.0002 q and
+    // -0.0041 q).
+    EXPECT_NEAR(mean_error / (2.0 * out.size()), 0.0, 4 * q / std::sqrt(12.0 * 2 * out.size()));
   }
-}
-
-TEST(FeatureNoiseTest, BudgetSpreadsFeaturesEvenlyOverTheGrid) {
-  FeatureNoiseOptions options;
-  options.budget = 100;
-  options.grid_cols = 4;
-  options.grid_rows = 3;
-  // Cell (0, 0) holds 2000 features, each other cell 5: sparse cells keep all theirs.
-  std::vector<ProjectedVertex> features;
-  std::mt19937 rng(2);
-  std::uniform_real_distribution<float> unit(0.01f, 0.99f);
-  VertexId id = 0;
-  for (int cell = 0; cell < 12; ++cell) {
-    const int col = cell % 4, row = cell / 4;
-    for (int k = 0; k < (cell == 0 ? 2000 : 5); ++k) {
-      features.push_back({id++, (col + unit(rng)) * 160.f, (row + unit(rng)) * 160.f, 1.f});
-    }
-  }
-  auto count_per_cell = [](const std::vector<ProjectedVertex>& fs) {
-    std::vector<int> counts(12, 0);
-    for (const ProjectedVertex& f : fs)
-      ++counts[static_cast<int>(f.v / 160) * 4 + static_cast<int>(f.u / 160)];
-    return counts;
-  };
-  std::vector<ProjectedVertex> out = features;
-  ApplyFeatureNoise(options, kCamera, kNumSceneVertices, 0, &out);
-  ASSERT_EQ(out.size(), 100u);
-  std::vector<int> counts = count_per_cell(out);
-  EXPECT_EQ(counts[0], 100 - 11 * 5);
-  for (int cell = 1; cell < 12; ++cell) EXPECT_EQ(counts[cell], 5);
-
-  // Every cell dense: the budget splits evenly, at most one apart.
-  features.clear();
-  for (int cell = 0; cell < 12; ++cell) {
-    for (int k = 0; k < 300; ++k) {
-      features.push_back(
-          {id++, (cell % 4 + unit(rng)) * 160.f, (cell / 4 + unit(rng)) * 160.f, 1.f});
-    }
-  }
-  options.budget = 130;
-  out = features;
-  ApplyFeatureNoise(options, kCamera, kNumSceneVertices, 0, &out);
-  ASSERT_EQ(out.size(), 130u);
-  counts = count_per_cell(out);
-  EXPECT_EQ(*std::max_element(counts.begin(), counts.end()), 11);
-  EXPECT_EQ(*std::min_element(counts.begin(), counts.end()), 10);
-
-  // Under budget: untouched.
-  out = MakeFeatures(50);
-  ApplyFeatureNoise(options, kCamera, kNumSceneVertices, 0, &out);
-  EXPECT_EQ(out.size(), 50u);
 }
 
 TEST(FeatureNoiseTest, DeterministicGivenSeedAndFrameWhateverTheInputOrder) {
@@ -205,7 +165,6 @@ TEST(FeatureNoiseTest, DeterministicGivenSeedAndFrameWhateverTheInputOrder) {
   options.pixel_noise_sigma = 1.0;
   options.dropout_probability = 0.2;
   options.wrong_id_fraction = 0.05;
-  options.budget = 500;
   options.quantization_px = 0.25;
   options.seed = 123;
   const std::vector<ProjectedVertex> input = MakeFeatures(3000);
@@ -223,7 +182,7 @@ TEST(FeatureNoiseTest, DeterministicGivenSeedAndFrameWhateverTheInputOrder) {
     return true;
   };
   const std::vector<ProjectedVertex> first = run(input, 123, 7);
-  EXPECT_EQ(first.size(), 500u);
+  EXPECT_LT(first.size(), input.size());  // dropout removed some
   EXPECT_TRUE(same(first, run(input, 123, 7)));
   std::vector<ProjectedVertex> shuffled = input;
   std::shuffle(shuffled.begin(), shuffled.end(), std::mt19937(4));
@@ -234,16 +193,14 @@ TEST(FeatureNoiseTest, DeterministicGivenSeedAndFrameWhateverTheInputOrder) {
 }
 
 TEST(FeatureNoiseTest, CheckRejectsBadOptions) {
-  std::string why;
-  EXPECT_TRUE(FeatureNoiseOptions{}.Check(&why));
+  EXPECT_TRUE(FeatureNoiseOptions{}.Check());
   EXPECT_FALSE(FeatureNoiseOptions{}.Enabled());
   auto bad = [](auto mutate) {
     FeatureNoiseOptions o;
     mutate(o);
-    std::string reason;
-    const bool ok = o.Check(&reason);
-    EXPECT_FALSE(reason.empty() && !ok);
-    return !ok;
+    const Status valid = o.Check();
+    EXPECT_TRUE(valid || !valid.message().empty());  // a refusal says why
+    return !valid.ok();
   };
   EXPECT_TRUE(bad([](FeatureNoiseOptions& o) { o.pixel_noise_sigma = -1; }));
   EXPECT_TRUE(bad([](FeatureNoiseOptions& o) { o.pixel_noise_sigma = INFINITY; }));
@@ -251,9 +208,6 @@ TEST(FeatureNoiseTest, CheckRejectsBadOptions) {
   EXPECT_TRUE(bad([](FeatureNoiseOptions& o) { o.dropout_probability = 1.5; }));
   EXPECT_TRUE(bad([](FeatureNoiseOptions& o) { o.dropout_probability = NAN; }));
   EXPECT_TRUE(bad([](FeatureNoiseOptions& o) { o.wrong_id_fraction = -0.1; }));
-  EXPECT_TRUE(bad([](FeatureNoiseOptions& o) { o.budget = -1; }));
-  EXPECT_TRUE(bad([](FeatureNoiseOptions& o) { o.grid_cols = 0; }));
-  EXPECT_TRUE(bad([](FeatureNoiseOptions& o) { o.grid_rows = 100000; }));
 }
 
 }  // namespace

@@ -198,24 +198,24 @@ TEST(CpuProjectorTest, ReusesOutputCapacityAndHandlesEmptyScenes) {
 }
 
 TEST(CpuProjectorTest, RejectsBadOptionsScenesCamerasAndPoses) {
-  std::string why;
-  EXPECT_TRUE(ProjectorOptions{}.Check(&why));
+  Status why;
+  EXPECT_TRUE((why = ProjectorOptions{}.Check()));
   ProjectorOptions bad;
   bad.occlusion_resolution_scale = 0.0;
-  EXPECT_FALSE(bad.Check(&why));
-  EXPECT_NE(why.find("occlusion_resolution_scale"), std::string::npos);
+  EXPECT_FALSE((why = bad.Check()));
+  EXPECT_NE(why.message().find("occlusion_resolution_scale"), std::string::npos);
   bad = {};
   bad.occlusion_resolution_scale = 1.5;
-  EXPECT_FALSE(bad.Check(nullptr));
+  EXPECT_FALSE(bad.Check());
   bad = {};
   bad.occlusion_depth_bias_relative = -0.1;
-  EXPECT_FALSE(bad.Check(nullptr));
+  EXPECT_FALSE(bad.Check());
   bad = {};
   bad.occlusion_depth_bias_m = std::nan("");
-  EXPECT_FALSE(bad.Check(nullptr));
+  EXPECT_FALSE(bad.Check());
   bad = {};
   bad.num_threads = -1;
-  EXPECT_FALSE(bad.Check(nullptr));
+  EXPECT_FALSE(bad.Check());
   EXPECT_FALSE(CpuProjector::Create(Scene{}, bad).ok());
 
   Scene scene;

@@ -279,18 +279,18 @@ TEST_F(SceneTest, PointCloudsGiveVerticesWithoutTriangles) {
 }
 
 TEST(SceneLoadOptions, Check) {
-  std::string why;
-  EXPECT_TRUE(SceneLoadOptions{}.Check(&why));
+  Status why;
+  EXPECT_TRUE((why = SceneLoadOptions{}.Check()));
   SceneLoadOptions o;
   o.scale = std::nan("");
-  EXPECT_FALSE(o.Check(&why));
-  EXPECT_NE(why.find("scale"), std::string::npos);
+  EXPECT_FALSE((why = o.Check()));
+  EXPECT_NE(why.message().find("scale"), std::string::npos);
   o = {};
   o.rotation = Eigen::Quaterniond(2, 0, 0, 0);
-  EXPECT_FALSE(o.Check(&why));
+  EXPECT_FALSE((why = o.Check()));
   o = {};
   o.translation.x() = INFINITY;
-  EXPECT_FALSE(o.Check(&why));
+  EXPECT_FALSE((why = o.Check()));
 }
 
 }  // namespace

@@ -91,8 +91,8 @@ TEST(HeadMotion, DeterministicPerSeed) {
 
 TEST(HeadMotion, RejectsBadOptionsAndImpossibleRooms) {
   HeadMotionOptions options;
-  std::string why;
-  EXPECT_TRUE(options.Check(&why)) << why;
+  Status why;
+  EXPECT_TRUE((why = options.Check())) << why.message();
   options.rate_hz = 0.0;
   EXPECT_FALSE(GenerateHeadMotion(options).ok());
   options = {};
@@ -103,7 +103,7 @@ TEST(HeadMotion, RejectsBadOptionsAndImpossibleRooms) {
   EXPECT_NE(GenerateHeadMotion(options).error().find("no free floor"), std::string::npos);
   options = {};
   options.pause_probability = 1.5;
-  EXPECT_FALSE(options.Check(&why));
+  EXPECT_FALSE((why = options.Check()));
 }
 
 }  // namespace

@@ -14,8 +14,8 @@ namespace {
 // accepts is kept as it was (strings hold no NUL but their last byte).
 template <typename Message>
 int DecodeAndReencode(const uint8_t* data, size_t size,
-                      wire::DecodeResult<Message> (*decode)(const void*, size_t)) {
-  const wire::DecodeResult<Message> decoded = decode(data, size);
+                      Expected<Message> (*decode)(const void*, size_t)) {
+  const Expected<Message> decoded = decode(data, size);
   if (!decoded) {
     M2S_CHECK(!decoded.error().empty());
     return 0;

@@ -13,6 +13,7 @@
 #include "m2s/common/alignment.h"
 #include "m2s/common/cpu_projector.h"
 #include "m2s/common/feature_noise.h"
+#include "m2s/common/feature_rank.h"
 #include "m2s/common/scene.h"
 #include "m2s/common/trajectory.h"
 #include "m2s/slam/system.h"
@@ -23,7 +24,7 @@ struct SimOptions {
   double duration_s = 20.0;
   double fps = 30.0;
   uint64_t seed = 1;
-  int budget = 1000;  // features per frame (grid spread); 0: all visible vertices
+  int budget = 1000;  // features per frame (the balanced selection); 0: all visible vertices
   double pixel_noise_sigma = 0.0;
   double wrong_id_fraction = 0.0;
   bool occlusion = true;
@@ -94,7 +95,7 @@ inline std::vector<Frame> ProjectFrames(const Scene& scene, const Trajectory& tr
   FeatureNoiseOptions noise;
   noise.pixel_noise_sigma = options.pixel_noise_sigma;
   noise.wrong_id_fraction = options.wrong_id_fraction;
-  noise.budget = options.budget;
+  const FeatureGrid grid = FeatureGrid::ForImage(camera.width, camera.height);
   noise.seed = options.seed;
   std::vector<Frame> frames;
   std::vector<ProjectedVertex> projected;
@@ -111,6 +112,7 @@ inline std::vector<Frame> ProjectFrames(const Scene& scene, const Trajectory& tr
     f.features.reserve(projected.size());
     for (const ProjectedVertex& v : projected)
       f.features.push_back({v.id, Eigen::Vector2f(v.u, v.v)});
+    KeepBalanced(options.budget, grid, &f.features);
     frames.push_back(std::move(f));
   }
   return frames;

@@ -4,7 +4,7 @@
 //  * Open bus: the decoder crash message leaves both alive and the client tracking.
 //  * Keyed bus: RESET, BYE, a frame with a huge seq, forged poses and SESSION_ENDED, eight
 //    HELLOs a round, replays of captured authentic messages: the victim processes at least
-//    95 % of its frames with sub-millimetre ATE in one session, exits 0, and the server's
+//    95 % of its frames with an ATE under 0.1 mm in one session, exits 0, and the server's
 //    counters account for every forged and replayed message.
 //  * A client no server answers exits non-zero and says so.
 #include <cstdlib>
@@ -16,6 +16,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "server_script.h"
 #include "test_files.h"
 
 namespace m2s {
@@ -23,6 +24,10 @@ namespace {
 
 namespace fs = std::filesystem;
 constexpr const char* kUrl = "udpm://239.255.76.67:7667?ttl=0";
+// The victim runs --fast (deterministic SLAM) without feature noise: measured ATE 1.3e-5 m
+// (crash scenario) and 1.6e-5 m (keyed), what the wire's 1/64 px quantisation leaves; the
+// bound allows about 7x. An attack that moved a pose or a map point would show far above it.
+constexpr double kAteBoundM = 1e-4;
 
 bool NamespacesPermitted() { return std::system("unshare -n true 2>/dev/null") == 0; }
 
@@ -42,19 +47,19 @@ int RunScenario(const fs::path& dir, const std::string& key_args, const std::str
   std::ofstream script(dir / "run.sh");
   script << "set -u\n"
          << "ip link set lo up && ip route add 224.0.0.0/4 dev lo || exit 90\n"
-         << Bin("m2s_server") << " --lcm-url '" << kUrl << "' --stats-period 0 " << key_args
-         << " --stats-out " << d << "/server.json 2> " << d << "/server.log &\n"
-         << "server=$!\n"
+         // The client says HELLO only once the server listens.
+         << testing::StartServerLines(Bin("m2s_server") + " --lcm-url '" + kUrl +
+                                          "' --stats-period 0 " + key_args + " --stats-out " + d +
+                                          "/server.json",
+                                      dir)
          << Bin("bus_attacker") << " --lcm-url '" << kUrl << "' --report " << d << "/attack.json "
          << attacker_args << " 2> " << d << "/attacker.log &\n"
          << "attacker=$!\n"
-         << "sleep 0.5\n"  // the server subscribes before the client says HELLO
          << Bin("m2s_client") << " --lcm-url '" << kUrl << "' " << key_args << " " << client_args
          << " --projector cpu --no-map-png --out " << d << "/out > " << d << "/client.log 2>&1\n"
          << "rc=$?\n"
          << "wait $attacker\n"
-         << "kill -TERM $server; wait $server; echo $? > " << d << "/server.rc\n"
-         << "exit $rc\n";
+         << testing::StopServerLines(dir / "server.rc") << "exit $rc\n";
   script.close();
   const int status = std::system(("unshare -n sh " + (dir / "run.sh").string()).c_str());
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
@@ -96,7 +101,7 @@ TEST(BusAttackTest, DecoderCrashMessageLeavesServerAndClientAlive) {
   EXPECT_GE(attack["rounds"].get<int>(), 1);
   EXPECT_EQ(metrics["frames_processed"].get<int>(), metrics["frames_total"].get<int>());
   EXPECT_GT(metrics["frames_tracked"].get<int>(), metrics["frames_total"].get<int>() / 2);
-  EXPECT_LT(metrics["ate_rmse"].get<double>(), 1e-3);
+  EXPECT_LT(metrics["ate_rmse"].get<double>(), kAteBoundM);
   // Every crash message reached the server and was counted as undecodable.
   EXPECT_EQ(server["drops"]["bad_bytes"].get<int>(), attack["to_server_forged"].get<int>());
   EXPECT_EQ(metrics["sessions"].get<int>(), 1);
@@ -122,7 +127,7 @@ TEST(BusAttackTest, KeyedBusIgnoresAStrayPublisherAndItsReplays) {
   EXPECT_GT(attack["to_server_replayed"].get<int>(), 0);
   const int total = metrics["frames_total"].get<int>();
   EXPECT_GE(metrics["frames_processed"].get<int>(), total * 95 / 100);
-  EXPECT_LT(metrics["ate_rmse"].get<double>(), 1e-3);
+  EXPECT_LT(metrics["ate_rmse"].get<double>(), kAteBoundM);
   EXPECT_EQ(metrics["sessions"].get<int>(), 1);  // nothing ended or reset it
   EXPECT_EQ(metrics["server_restarts"].get<int>(), 0);
   // The server refused every forged message before decoding, and every replay.

@@ -10,6 +10,7 @@
 //                [--crash-only]
 #include <atomic>
 #include <chrono>
+#include <condition_variable>
 #include <cstring>
 #include <fstream>
 #include <iostream>
@@ -55,6 +56,7 @@ class Watcher {
       if (auto f = wire::DecodeFeatureFrame(payload, size, {})) {
         victim_session_ = f->session_id;
         victim_seq_ = f->seq;
+        victim_seen_.notify_all();
       }
     } else if (channel == wire::kPoseChannel) {
       if (auto p = wire::DecodePoseEstimate(payload, size)) server_instance_ = p->server_instance;
@@ -84,8 +86,10 @@ class Watcher {
     }
     return out;
   }
-  std::optional<int64_t> victim_session() {
-    std::lock_guard<std::mutex> lock(mutex_);
+  // Waits until a victim's frame has been seen, at most `timeout`; its session, if any.
+  std::optional<int64_t> WaitForVictim(std::chrono::seconds timeout) {
+    std::unique_lock<std::mutex> lock(mutex_);
+    victim_seen_.wait_for(lock, timeout, [&] { return victim_session_.has_value(); });
     return victim_session_;
   }
   int64_t server_instance() {
@@ -100,6 +104,7 @@ class Watcher {
  private:
   static constexpr size_t kKeepPerChannel = 64;
   std::mutex mutex_;
+  std::condition_variable victim_seen_;
   std::map<std::string, std::vector<Captured>> captured_;
   std::map<std::vector<uint8_t>, bool> own_;
   std::optional<int64_t> victim_session_;
@@ -175,7 +180,7 @@ int main(int argc, char** argv) {
     lcm.publish(channel, bytes.data(), static_cast<unsigned>(bytes.size()));
     if (ToServer(channel)) ++(replay ? tally.to_server_replayed : tally.to_server_forged);
     if (ToClient(channel)) ++(replay ? tally.to_client_replayed : tally.to_client_forged);
-    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));  // paces the publisher
   };
   // A fake envelope: the right shape with a made-up tag.
   std::mt19937_64 rng(7);
@@ -189,12 +194,7 @@ int main(int argc, char** argv) {
     return out;
   };
 
-  // Wait (at most 60 s) for a victim.
-  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(60);
-  while (!watcher.victim_session() && std::chrono::steady_clock::now() < give_up) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
-  }
-  const std::optional<int64_t> victim = watcher.victim_session();
+  const std::optional<int64_t> victim = watcher.WaitForVictim(std::chrono::seconds(60));
   for (int round = 0; victim && round < rounds && !watcher.victim_left(); ++round) {
     send(wire::kSessionChannel, CrashMessage(), false);
     if (!crash_only) {

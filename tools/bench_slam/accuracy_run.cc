@@ -159,7 +159,6 @@ Expected<RunMetrics> RunAccuracy(const Scene& scene, const Sequence& sequence,
   if (!ground_truth) return Status::Error(ground_truth.error());
   const Camera camera = BenchCamera();
   FrameSourceOptions source_options;
-  source_options.noise.budget = config.budget;
   source_options.vertex_stride = config.vertex_stride;
   source_options.noise.seed = config.noise_seed;
   if (config.noisy) {

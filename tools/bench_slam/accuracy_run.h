@@ -16,10 +16,10 @@ namespace m2s::bench {
 
 struct RunConfig {
   double fps = 30.0;
-  bool noisy = false;                   // 0.5 px Gaussian noise + 1% wrong ids
-  bool realtime = false;                // wall-clock pacing into Submit(), threaded mapping
-  int budget = 0;                       // features kept per frame (0: every visible vertex)
-  int feature_budget = -1;              // slam::Options::feature_budget (-1: the library's default)
+  bool noisy = false;       // 0.5 px Gaussian noise + 1% wrong ids
+  bool realtime = false;    // wall-clock pacing into Submit(), threaded mapping
+  int feature_budget = -1;  // slam::Options::feature_budget, the balanced selection of every
+                            // visible vertex (-1: the library's default, 0: all)
   double init_min_parallax_deg = -1.0;  // Options::initializer.min_parallax_deg (-1: default)
   int vertex_stride = 1;                // use only vertices with id % vertex_stride == 0
   double noise_px = 0.5;

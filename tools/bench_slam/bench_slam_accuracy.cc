@@ -90,7 +90,6 @@ int main(int argc, char** argv) {
   std::vector<std::string> modes = {"noise-free", "noisy", "realtime"};
   std::vector<std::string> sequences = {"default", "room-s2", "room-s3"};
   double duration_s = 0.0;
-  int budget = 0;
   int feature_budget = -1;
   double init_parallax_deg = -1.0;
   int vertex_stride = 1;
@@ -104,11 +103,9 @@ int main(int argc, char** argv) {
   app.add_option("--sequences", sequences, "default and/or room-s<seed>");
   app.add_option("--duration", duration_s, "sequence length in seconds (0: 60 s)")
       ->check(CLI::NonNegativeNumber);
-  app.add_option("--budget", budget, "features kept per frame (0: all visible vertices)")
-      ->check(CLI::NonNegativeNumber);
-  app.add_option("--feature-budget", feature_budget,
-                 "slam::Options::feature_budget: features SLAM uses per frame, by id hash (0: "
-                 "all; default: the library's)")
+  app.add_option("--budget", feature_budget,
+                 "features SLAM uses per frame, the balanced selection of the visible vertices "
+                 "(0: all; default: the library's)")
       ->check(CLI::Range(-1, 1 << 30));
   app.add_option("--init-parallax-deg", init_parallax_deg,
                  "slam::Options::initializer.min_parallax_deg (default: the library's)")
@@ -161,7 +158,6 @@ int main(int argc, char** argv) {
         config.fps = rate;
         config.noisy = mode == "noisy" || mode == "realtime-noisy";
         config.realtime = mode.rfind("realtime", 0) == 0;
-        config.budget = budget;
         config.feature_budget = feature_budget;
         config.init_min_parallax_deg = init_parallax_deg;
         config.vertex_stride = vertex_stride;

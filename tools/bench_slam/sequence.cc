@@ -30,8 +30,7 @@ Expected<std::vector<Sequence>> MakeSequences(const std::vector<uint64_t>& room_
 Expected<std::unique_ptr<FrameSource>> FrameSource::Create(const Scene& scene, const Camera& camera,
                                                            Trajectory ground_truth,
                                                            const FrameSourceOptions& options) {
-  std::string why;
-  if (!options.noise.Check(&why)) return Status::Error(why);
+  if (Status s = options.noise.Check(); !s) return s;
   if (options.vertex_stride < 1) return Status::Error("vertex_stride must be at least 1");
   ProjectorOptions projector_options;
   projector_options.occlusion = options.occlusion;

@@ -20,6 +20,7 @@
 #include "m2s/common/camera_io.h"
 #include "m2s/common/cpu_projector.h"
 #include "m2s/common/feature_noise.h"
+#include "m2s/common/feature_rank.h"
 #include "m2s/common/scene.h"
 #include "m2s/common/trajectory.h"
 #include "m2s/gpu/projector_factory.h"
@@ -42,6 +43,7 @@ struct Args {
   ProjectorOptions projector;
   std::string projector_kind = "cpu";  // --projector cpu|gpu
   FeatureNoiseOptions noise;
+  int budget = 0;  // the balanced selection of feature_rank.h; 0: every feature
   std::optional<uint64_t> frame_index;
   std::string out;
 };
@@ -53,8 +55,7 @@ Expected<Camera> MakeCamera(const Args& args) {
   }
   const Camera camera =
       Camera::FromHorizontalFov(args.width, args.height, args.fov_deg, args.near, args.far);
-  std::string why;
-  if (!camera.Check(&why)) return Expected<Camera>::Error(why);
+  if (Status s = camera.Check(); !s) return s;
   return camera;
 }
 
@@ -118,9 +119,8 @@ Status WriteCsv(const std::string& path, const Scene& scene,
 }
 
 Status Run(const Args& args) {
-  std::string why;
-  if (!args.projector.Check(&why)) return Status::Error(why);
-  if (!args.noise.Check(&why)) return Status::Error(why);
+  if (Status s = args.projector.Check(); !s) return s;
+  if (Status s = args.noise.Check(); !s) return s;
   const bool use_default = args.default_scene || args.mesh.empty();
   if (args.default_scene && !args.mesh.empty()) {
     return Status::Error("--default-scene and --mesh are exclusive");
@@ -153,6 +153,18 @@ Status Run(const Args& args) {
   // Sorts by id too (with every option off it only sorts).
   ApplyFeatureNoise(args.noise, *camera, static_cast<uint32_t>(scene.num_vertices()), frame->index,
                     &features);
+  if (args.budget > 0 && features.size() > static_cast<size_t>(args.budget)) {
+    const FeatureGrid grid = FeatureGrid::ForImage(camera->width, camera->height);
+    std::vector<VertexId> ids;
+    std::vector<int> cells;
+    for (const ProjectedVertex& f : features) {
+      ids.push_back(f.id);
+      cells.push_back(grid.CellOf(f.u, f.v));
+    }
+    std::vector<ProjectedVertex> kept;
+    for (const uint32_t i : SelectBalanced(ids, cells, args.budget)) kept.push_back(features[i]);
+    features.swap(kept);  // still sorted by id: SelectBalanced returns ascending indices
+  }
   return WriteCsv(args.out, scene, features);
 }
 
@@ -203,10 +215,8 @@ int main(int argc, char** argv) {
                  "Probability of dropping each feature");
   app.add_option("--wrong-ids", args.noise.wrong_id_fraction,
                  "Fraction of features given a wrong id");
-  app.add_option("--budget", args.noise.budget,
-                 "Most features kept, spread over the grid (0: unlimited)");
-  app.add_option("--grid-cols", args.noise.grid_cols, "Budget grid columns")->capture_default_str();
-  app.add_option("--grid-rows", args.noise.grid_rows, "Budget grid rows")->capture_default_str();
+  app.add_option("--budget", args.budget,
+                 "Most features kept: the balanced, id-stable selection SLAM uses (0: all)");
   app.add_option("--seed", args.noise.seed, "Noise seed")->capture_default_str();
   app.add_option(
       "--frame-index", args.frame_index,

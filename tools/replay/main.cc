@@ -26,7 +26,7 @@ int main(int argc, char** argv) {
     return 1;
   }
   if (!result->log_problem.empty()) std::cerr << "m2s_replay: " << result->log_problem << "\n";
-  std::cout << m2s::headless::SummaryLine(result->metrics, options.out_dir) << "\n";
+  std::cout << m2s::reporting::SummaryLine(result->metrics, options.out_dir) << "\n";
   if (!result->metrics.map_png.empty()) std::cout << "map: " << result->metrics.map_png << "\n";
   std::cout << "trajectory: " << result->metrics.trajectory_png << "\n";
   return 0;

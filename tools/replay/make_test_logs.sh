@@ -8,7 +8,6 @@
 # Logs (each under 1 MB: a feature budget keeps frames small):
 #   default_fast_10hz.lcmlog        --fast, 10 fps, 6 s of the default trajectory, 1500 features
 #   default_realtime_30hz.lcmlog    real time, 30 fps, 5 s, 600 features, 0.5 px noise, 1% wrong ids
-# Next to each log, <name>.trajectory.tum is the live run's estimate (for reference).
 set -euo pipefail
 root="$(cd "$(dirname "$0")/../.." && pwd)"
 build="${1:-$root/build}"
@@ -36,7 +35,6 @@ record() {  # name, client flags...
   kill -INT "$logger" "$server"
   wait "$logger" "$server" || true
   cp "$tmp/$name.lcmlog" "$out/$name.lcmlog"
-  cp "$tmp/run/trajectory.tum" "$out/$name.trajectory.tum"
   ls -l "$out/$name.lcmlog"
   rm -rf "$tmp"
 }

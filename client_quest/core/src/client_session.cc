@@ -31,6 +31,8 @@ uint64_t RandomSeed() {
 
 }  // namespace
 
+double ClientSession::Now() const { return options_.clock_s ? options_.clock_s() : NowSeconds(); }
+
 ClientSession::ClientSession(Transport* transport, ClientSessionOptions options)
     : transport_(transport),
       options_(std::move(options)),
@@ -66,7 +68,7 @@ void ClientSession::BeginSession() {
     acked_ = false;
     new_session_pending_ = false;
     session_first_seq_ = next_seq_;
-    last_answer_s_ = NowSeconds();
+    last_answer_s_ = Now();
     outstanding_ = false;
     ++counters_.sessions_started;
   }
@@ -81,7 +83,10 @@ void ClientSession::BeginSession() {
   hello.client_name = options_.client_name;
   hello.camera = wire::ToMessage(options_.camera);
   hello.flags = options_.deterministic ? session_control_t::FLAG_DETERMINISTIC : 0;
-  transport_->Publish(wire::kSessionChannel, wire::Encode(hello));
+  // Best effort: HELLO is repeated until answered and frames open the session too.
+  if (Status sent = transport_->Publish(wire::kSessionChannel, wire::Encode(hello)); !sent) {
+    M2S_LOG(kWarning) << "HELLO not sent: " << sent.message();
+  }
 }
 
 void ClientSession::PublishControl(int8_t type, int64_t session_id, int64_t last_revision) {
@@ -95,7 +100,10 @@ void ClientSession::PublishControl(int8_t type, int64_t session_id, int64_t last
   m.client_name = options_.client_name;
   m.camera = wire::ToMessage(options_.camera);
   m.flags = 0;
-  transport_->Publish(wire::kSessionChannel, wire::Encode(m));
+  if (Status sent = transport_->Publish(wire::kSessionChannel, wire::Encode(m)); !sent) {
+    M2S_LOG(kWarning) << "session message " << static_cast<int>(type)
+                      << " not sent: " << sent.message();
+  }
 }
 
 Expected<int64_t> ClientSession::Send(wire::FeatureFrame frame) {
@@ -103,7 +111,7 @@ Expected<int64_t> ClientSession::Send(wire::FeatureFrame frame) {
   {
     std::lock_guard<std::mutex> lock(mutex_);
     if (!started_ || ended_) return Status::Error("session not running");
-    CheckAnsweredLocked(NowSeconds());
+    CheckAnsweredLocked(Now());
     if (new_session_pending_) old_session = session_id_;
   }
   if (old_session != 0) {
@@ -156,7 +164,7 @@ bool ClientSession::SyncMap(double timeout_s) {
     id = session_id_;
     full_before = counters_.full_maps;
     ++counters_.resync_requests;
-    last_resync_s_ = NowSeconds();
+    last_resync_s_ = Now();
   }
   PublishControl(session_control_t::RESYNC_REQUEST, id, replica_.revision());
   std::unique_lock<std::mutex> lock(mutex_);
@@ -245,7 +253,7 @@ void ClientSession::OnPose(const pose_estimate_t& pose) {
   record.tracking_ms = pose.tracking_ms;
   record.latency_ms = static_cast<double>(now_us - record.send_steady_us) * 1e-3;
   ++counters_.poses_received;
-  last_answer_s_ = NowSeconds();
+  last_answer_s_ = Now();
   outstanding_ = false;
   cv_.notify_all();
 }
@@ -272,7 +280,7 @@ void ClientSession::OnMap(const map_delta_t& delta) {
         break;
       case MapReplica::ApplyResult::kGap: {
         ++counters_.map_gaps;
-        const double now = NowSeconds();
+        const double now = Now();
         if (now - last_resync_s_ >= options_.resync_min_interval_s) {
           last_resync_s_ = now;
           ++counters_.resync_requests;
@@ -301,7 +309,7 @@ void ClientSession::OnSession(const session_control_t& message) {
       }
       server_instance_ = message.server_instance;
       acked_ = true;
-      last_answer_s_ = NowSeconds();
+      last_answer_s_ = Now();
       cv_.notify_all();
       return;
     case session_control_t::SESSION_ENDED:

@@ -12,7 +12,8 @@ FrameSource::FrameSource(Projector* projector, const Camera& camera, FeatureNois
       camera_(camera),
       noise_(noise),
       num_scene_vertices_(num_scene_vertices),
-      send_budget_(send_budget) {}
+      send_budget_(send_budget),
+      send_grid_(FeatureGrid::ForImage(camera.width, camera.height)) {}
 
 Expected<wire::FeatureFrame> FrameSource::Make(const Pose3& world_from_camera,
                                                int64_t capture_time_us, uint64_t frame_index) {
@@ -33,7 +34,7 @@ Expected<wire::FeatureFrame> FrameSource::Make(const Pose3& world_from_camera,
     f.uv = {p.u, p.v};
     frame.features.push_back(f);
   }
-  KeepLowestRanked(send_budget_, &frame.features);
+  KeepBalanced(send_budget_, send_grid_, &frame.features);
   last_projection_ms_ =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return frame;

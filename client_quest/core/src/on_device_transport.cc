@@ -10,8 +10,7 @@ OnDeviceTransport::~OnDeviceTransport() { Stop(); }
 
 Status OnDeviceTransport::Start(MessageHandler handler) {
   if (manager_) return Status::Error("on-device transport already started");
-  std::string why;
-  if (!options_.Check(&why)) return Status::Error("server options: " + why);
+  if (Status s = options_.Check(); !s) return s.Prefixed("server options: ");
   manager_ = std::make_unique<server_app::SessionManager>(
       options_,
       [handler = std::move(handler)](const std::string& channel, std::vector<uint8_t> bytes) {

@@ -84,7 +84,7 @@ void main() {
 Expected<std::unique_ptr<GpuProjector>> GpuProjector::Create(const Scene& scene,
                                                              const ProjectorOptions& options,
                                                              GlContext* context) {
-  if (std::string why; !options.Check(&why)) return Status::Error("GpuProjector: " + why);
+  if (Status s = options.Check(); !s) return s.Prefixed("GpuProjector: ");
   if (scene.positions.empty()) return Status::Error("GpuProjector: the scene has no vertices");
   if (scene.triangles.size() % 3 != 0) {
     return Status::Error("GpuProjector: the triangle index count is not a multiple of 3");
@@ -188,8 +188,7 @@ Status GpuProjector::Project(const Pose3& world_from_camera, const Camera& camer
 }
 
 Status GpuProjector::Dispatch(const Pose3& world_from_camera, const Camera& camera, int64_t tag) {
-  std::string why;
-  if (!camera.Check(&why)) return Status::Error("GpuProjector: " + why);
+  if (Status s = camera.Check(); !s) return s.Prefixed("GpuProjector: ");
   if (!world_from_camera.AllFinite()) return Status::Error("GpuProjector: pose is not finite");
   if (in_flight_ >= kMaxFramesInFlight) {
     return Status::Error("GpuProjector::Dispatch: " + std::to_string(kMaxFramesInFlight) +

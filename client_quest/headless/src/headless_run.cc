@@ -43,12 +43,11 @@ Expected<std::unique_ptr<Projector>> CreateProjector(const HeadlessOptions& opti
 }  // namespace
 
 Expected<HeadlessResult> RunHeadless(const HeadlessOptions& options) {
-  std::string why;
   if (!(options.fps > 0 && options.fps <= 10000))
     return Status::Error("--fps must be in (0, 10000]");
-  if (!options.camera.Check(&why)) return Status::Error("camera: " + why);
-  if (!options.noise.Check(&why)) return Status::Error("noise: " + why);
-  if (!options.projector_options.Check(&why)) return Status::Error("projector: " + why);
+  if (Status s = options.camera.Check(); !s) return s.Prefixed("camera: ");
+  if (Status s = options.noise.Check(); !s) return s.Prefixed("noise: ");
+  if (Status s = options.projector_options.Check(); !s) return s.Prefixed("projector: ");
   if (options.send_budget < 0) return Status::Error("send_budget must be >= 0 (0: all)");
 
   auto loaded_scene = LoadSceneOrDefault(options.mesh_path);
@@ -94,7 +93,7 @@ Expected<HeadlessResult> RunHeadless(const HeadlessOptions& options) {
   client::ClientSession session(transport.get(), session_options);
   if (Status s = session.Start(); !s) return s;
 
-  RunInfo info;
+  reporting::RunInfo info;
   info.projector = projector_name;
   info.transport = options.on_device ? "on-device" : "lcm";
   info.fps = options.fps;
@@ -161,7 +160,8 @@ Expected<HeadlessResult> RunHeadless(const HeadlessOptions& options) {
   info.resync_requests = result.counters.resync_requests;
   info.bus_refused = result.counters.refused_by_transport;
   info.foreign_server_messages = result.counters.foreign_server_messages;
-  auto metrics = WriteRunOutputs(options.out_dir, records, map, &scene, options.camera, info);
+  auto metrics =
+      reporting::WriteRunOutputs(options.out_dir, records, map, &scene, options.camera, info);
   if (!metrics) return metrics.status();
   result.metrics = std::move(*metrics);
   return result;

@@ -76,27 +76,22 @@ bool FiniteColor(const Eigen::Vector4f& c) {
 
 }  // namespace
 
-bool MapRendererOptions::Check(std::string* why) const {
-  auto fail = [why](const char* msg) {
-    if (why) *why = msg;
-    return false;
-  };
+Status MapRendererOptions::Check() const {
   for (const Eigen::Vector4f* c : {&background, &mesh_color, &wireframe_color, &point_color,
                                    &keyframe_color, &estimate_color, &ground_truth_color}) {
-    if (!FiniteColor(*c)) return fail("renderer colours must be RGBA in [0, 1]");
+    if (!FiniteColor(*c)) return Status::Error("renderer colours must be RGBA in [0, 1]");
   }
   if (!(point_size_px > 0.f) || !std::isfinite(point_size_px))
-    return fail("point_size_px must be finite and > 0");
+    return Status::Error("point_size_px must be finite and > 0");
   if (!(line_width_px > 0.f) || !std::isfinite(line_width_px))
-    return fail("line_width_px must be finite and > 0");
+    return Status::Error("line_width_px must be finite and > 0");
   if (!(frustum_depth_m > 0.0) || !std::isfinite(frustum_depth_m))
-    return fail("frustum_depth_m must be finite and > 0");
-  return true;
+    return Status::Error("frustum_depth_m must be finite and > 0");
+  return Status::Ok();
 }
 
 Expected<std::unique_ptr<MapRenderer>> MapRenderer::Create(const MapRendererOptions& options) {
-  std::string why;
-  if (!options.Check(&why)) return Status::Error("MapRenderer: " + why);
+  if (Status s = options.Check(); !s) return s.Prefixed("MapRenderer: ");
   std::unique_ptr<MapRenderer> renderer(new MapRenderer(options));
   if (Status s = renderer->Init(); !s) return Status::Error("MapRenderer: " + s.message());
   return renderer;

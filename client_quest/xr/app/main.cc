@@ -91,12 +91,11 @@ int main(int argc, char** argv) {
   auto* mesh_flag = app.add_flag("--no-mesh", no_mesh, "do not draw the scene mesh");
   auto* out_flag = app.add_option("--out", out, "output folder (default out)");
   m2s::FeatureNoiseOptions noise;
-  app.add_option("--budget", noise.budget, "most features per frame, spread on a grid (0: all)");
+  int budget = 0;
+  auto* budget_flag = app.add_option(
+      "--budget", budget, "most features per frame, sent and used by SLAM (balanced, 0: all)");
   app.add_option("--noise-px", noise.pixel_noise_sigma, "pixel noise sigma");
   app.add_option("--seed", noise.seed, "noise seed");
-  int send_budget = 0;
-  auto* send_budget_flag = app.add_option("--send-budget", send_budget,
-                                          "send at most N features a frame, by id rank (0: all)");
   std::string key_file_flag;
   bool encrypt_flag = false;
   app.add_option("--key-file", key_file_flag, "shared secret of the LCM bus (authenticated)");
@@ -138,15 +137,15 @@ int main(int argc, char** argv) {
   if (*out_flag) options.out_dir = out;
   options.stdin_keys = keys;
   options.noise = noise;
-  if (*send_budget_flag) options.send_budget = send_budget;
+  if (*budget_flag) options.send_budget = options.server.slam.feature_budget = budget;
   auto parsed = m2s::xr::ParseControlEvents(event_text);
   if (!parsed) {
     std::cerr << "m2s_xr_client: " << parsed.error() << "\n";
     return 2;
   }
   options.events = *parsed;
-  if (!options.Check(&why)) {
-    std::cerr << "m2s_xr_client: " << why << "\n";
+  if (m2s::Status valid = options.Check(); !valid) {
+    std::cerr << "m2s_xr_client: " << valid.message() << "\n";
     return 2;
   }
   auto platform = m2s::xr::MakePlatform(nullptr);

@@ -23,8 +23,8 @@
 #include "m2s/common/scene.h"
 #include "m2s/gpu/gl_context.h"
 #include "m2s/gpu/projector_factory.h"
-#include "m2s/headless/run_outputs.h"
 #include "m2s/render/map_renderer.h"
+#include "m2s/reporting/run_outputs.h"
 #include "m2s/xr/axis_conversion.h"
 #include "m2s/xr/xr_session.h"
 #include "overlay.h"
@@ -138,22 +138,22 @@ Expected<std::vector<ControlEvent>> ParseControlEvents(const std::string& text) 
   return events;
 }
 
-bool XrClientOptions::Check(std::string* why) const {
-  if (!camera.Check(why)) return false;
-  if (!projector_options.Check(why) || !noise.Check(why) || !server.Check(why)) return false;
+Status XrClientOptions::Check() const {
+  if (Status s = camera.Check(); !s) return s;
+  if (Status s = projector_options.Check(); !s) return s.Prefixed("projector: ");
+  if (Status s = noise.Check(); !s) return s.Prefixed("noise: ");
+  if (Status s = server.Check(); !s) return s.Prefixed("server: ");
   if (send_budget < 0) {
-    *why = "send_budget must be >= 0 (0: all features)";
-    return false;
+    return Status::Error("send_budget must be >= 0 (0: all features)");
   }
   if (max_frames < 0 || align_every_frames < 1 || !(final_pose_timeout_s >= 0)) {
-    *why = "max_frames >= 0, align_every_frames >= 1 and final_pose_timeout_s >= 0 required";
-    return false;
+    return Status::Error(
+        "max_frames >= 0, align_every_frames >= 1 and final_pose_timeout_s >= 0 required");
   }
   if (out_dir.empty()) {
-    *why = "out_dir is empty";
-    return false;
+    return Status::Error("out_dir is empty");
   }
-  return true;
+  return Status::Ok();
 }
 
 namespace {
@@ -178,7 +178,7 @@ class XrRun {
   explicit XrRun(const XrClientOptions& options) : options_(options) {}
   std::vector<ControlEvent::Kind> PendingControls();
   Status ResetSlam();
-  Status WriteOutputs(const headless::RunInfo& info, const headless::RunMetrics& metrics,
+  Status WriteOutputs(const reporting::RunInfo& info, const reporting::RunMetrics& metrics,
                       const std::vector<std::string>& state_log, const std::string& runtime);
 
   const XrClientOptions& options_;
@@ -374,7 +374,7 @@ Expected<XrClientResult> XrRun::Finish() {
   link_->session->End();
   result_.slam_sessions = resets_ + 1;
 
-  headless::RunInfo info;
+  reporting::RunInfo info;
   info.projector = projector_name_;
   info.transport = options_.on_device ? "on-device" : "lcm";
   info.fps = display_rate_hz;
@@ -388,7 +388,7 @@ Expected<XrClientResult> XrRun::Finish() {
   std::error_code ignored;
   std::filesystem::create_directories(options_.out_dir, ignored);
   auto metrics =
-      headless::WriteRunOutputs(options_.out_dir, records, map, &scene_, options_.camera, info);
+      reporting::WriteRunOutputs(options_.out_dir, records, map, &scene_, options_.camera, info);
   if (!metrics) return metrics.status();
   result_.ate_rmse = metrics->ate_rmse;
   result_.projection = Stats(projection_ms_);
@@ -401,7 +401,7 @@ Expected<XrClientResult> XrRun::Finish() {
   return result_;
 }
 
-Status XrRun::WriteOutputs(const headless::RunInfo& info, const headless::RunMetrics& metrics,
+Status XrRun::WriteOutputs(const reporting::RunInfo& info, const reporting::RunMetrics& metrics,
                            const std::vector<std::string>& state_log, const std::string& runtime) {
   const nlohmann::json json = {{"runtime", runtime},
                                {"transport", info.transport},
@@ -445,8 +445,7 @@ Status XrRun::WriteOutputs(const headless::RunInfo& info, const headless::RunMet
 }  // namespace
 
 Expected<XrClientResult> RunXrClient(const XrClientOptions& options, XrPlatform* platform) {
-  std::string why;
-  if (!options.Check(&why)) return Status::Error(why);
+  if (Status s = options.Check(); !s) return s;
   auto run = XrRun::Create(options, platform);
   if (!run) return run.status();
   LoopAction action{};

@@ -92,19 +92,17 @@ const char* AlignmentName(Alignment alignment) {
   return "unknown";
 }
 
-bool AssociationOptions::Check(std::string* why) const {
+Status AssociationOptions::Check() const {
   if (!std::isfinite(max_dt) || max_dt < 0.0) {
-    if (why) *why = "max_dt must be finite and non-negative";
-    return false;
+    return Status::Error("max_dt must be finite and non-negative");
   }
   if (!std::isfinite(estimate_offset_s)) {
-    if (why) *why = "estimate_offset_s must be finite";
-    return false;
+    return Status::Error("estimate_offset_s must be finite");
   }
-  return true;
+  return Status::Ok();
 }
 
-bool EvaluationOptions::Check(std::string* why) const { return association.Check(why); }
+Status EvaluationOptions::Check() const { return association.Check(); }
 
 std::vector<MatchedPair> Associate(const Trajectory& reference, const Trajectory& estimate,
                                    const AssociationOptions& options) {
@@ -150,8 +148,7 @@ ErrorStats ComputeStats(const std::vector<double>& errors) {
 Expected<TrajectoryEvaluation> EvaluateTrajectory(const Trajectory& reference,
                                                   const Trajectory& estimate,
                                                   const EvaluationOptions& options) {
-  std::string why;
-  if (!options.Check(&why)) return Expected<TrajectoryEvaluation>::Error("evaluation: " + why);
+  if (Status s = options.Check(); !s) return s.Prefixed("evaluation: ");
   TrajectoryEvaluation result;
   result.matches = Associate(reference, estimate, options.association);
   if (result.matches.empty()) {

@@ -135,44 +135,42 @@ Pose3 HeadPose(const Eigen::Vector3d& eye, double yaw, double pitch, double roll
 
 }  // namespace
 
-bool HeadMotionOptions::Check(std::string* why) const {
-  auto fail = [why](const char* message) {
-    if (why) *why = message;
-    return false;
-  };
+Status HeadMotionOptions::Check() const {
   auto positive = [](double v) { return std::isfinite(v) && v > 0.0; };
   auto non_negative = [](double v) { return std::isfinite(v) && v >= 0.0; };
-  if (!positive(duration_s)) return fail("duration_s must be positive");
-  if (!positive(rate_hz)) return fail("rate_hz must be positive");
-  if (!room.min().allFinite() || !room.max().allFinite()) return fail("room must be finite");
+  if (!positive(duration_s)) return Status::Error("duration_s must be positive");
+  if (!positive(rate_hz)) return Status::Error("rate_hz must be positive");
+  if (!room.min().allFinite() || !room.max().allFinite())
+    return Status::Error("room must be finite");
   if (!non_negative(wall_clearance_m) || !non_negative(obstacle_clearance_m)) {
-    return fail("clearances must be non-negative");
+    return Status::Error("clearances must be non-negative");
   }
   if ((room.sizes().array() <= 2.0 * wall_clearance_m).any()) {
-    return fail("room is smaller than twice the wall clearance");
+    return Status::Error("room is smaller than twice the wall clearance");
   }
-  if (!positive(eye_height_m)) return fail("eye_height_m must be positive");
-  if (!positive(walking_speed_mps)) return fail("walking_speed_mps must be positive");
-  if (!positive(min_segment_m)) return fail("min_segment_m must be positive");
+  if (!positive(eye_height_m)) return Status::Error("eye_height_m must be positive");
+  if (!positive(walking_speed_mps)) return Status::Error("walking_speed_mps must be positive");
+  if (!positive(min_segment_m)) return Status::Error("min_segment_m must be positive");
   if (!non_negative(yaw_amplitude_deg) || !non_negative(pitch_amplitude_deg) ||
       !non_negative(roll_amplitude_deg) || !std::isfinite(pitch_bias_deg) ||
       std::abs(pitch_bias_deg) + pitch_amplitude_deg * 1.6 >= 85.0) {
-    return fail("look-around amplitudes must be non-negative and keep |pitch| below 85 deg");
+    return Status::Error(
+        "look-around amplitudes must be non-negative and keep |pitch| below 85 deg");
   }
-  if (!positive(look_frequency_hz)) return fail("look_frequency_hz must be positive");
+  if (!positive(look_frequency_hz)) return Status::Error("look_frequency_hz must be positive");
   if (!(pause_probability >= 0.0 && pause_probability <= 1.0)) {
-    return fail("pause_probability must be in [0, 1]");
+    return Status::Error("pause_probability must be in [0, 1]");
   }
   if (!non_negative(pause_duration_s) || !non_negative(bob_amplitude_m) ||
       !non_negative(step_frequency_hz)) {
-    return fail("pause_duration_s, bob_amplitude_m and step_frequency_hz must be non-negative");
+    return Status::Error(
+        "pause_duration_s, bob_amplitude_m and step_frequency_hz must be non-negative");
   }
-  return true;
+  return Status::Ok();
 }
 
 Expected<Trajectory> GenerateHeadMotion(const HeadMotionOptions& o) {
-  std::string why;
-  if (!o.Check(&why)) return Expected<Trajectory>::Error("head motion options: " + why);
+  if (Status s = o.Check(); !s) return s.Prefixed("head motion options: ");
   Random random(o.seed);
   Expected<std::vector<Event>> events = Plan(o, random);
   if (!events) return Expected<Trajectory>(events.status());

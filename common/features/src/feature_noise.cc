@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <numeric>
 #include <unordered_set>
 
 #include "m2s/common/check.h"
@@ -10,15 +9,12 @@
 namespace m2s {
 namespace {
 
-constexpr int kMaxGridCells = 4096;
-
+// The stage keys the random streams: the values are fixed so that a seed keeps its noise.
 enum class Stage : uint64_t {
   kDropout = 1,
-  kPixelNoise,
-  kBudget,
-  kBudgetCells,
-  kWrongId,
-  kWrongIdValue
+  kPixelNoise = 2,
+  kWrongId = 5,
+  kWrongIdValue = 6,
 };
 
 uint64_t Mix(uint64_t x) {  // SplitMix64 finaliser
@@ -66,52 +62,6 @@ bool InImage(const ProjectedVertex& f, const Camera& camera) {
          f.v < static_cast<float>(camera.height);
 }
 
-void ApplyBudget(const FeatureNoiseOptions& o, const Camera& camera, uint64_t frame,
-                 std::vector<ProjectedVertex>* features) {
-  const size_t budget = static_cast<size_t>(o.budget);
-  if (features->size() <= budget) return;
-  const int num_cells = o.grid_cols * o.grid_rows;
-  struct Entry {
-    int cell;
-    uint64_t key;
-    size_t index;
-  };
-  std::vector<Entry> entries;
-  entries.reserve(features->size());
-  for (size_t i = 0; i < features->size(); ++i) {
-    const ProjectedVertex& f = (*features)[i];
-    const int col = std::min(o.grid_cols - 1, static_cast<int>(f.u * o.grid_cols / camera.width));
-    const int row = std::min(o.grid_rows - 1, static_cast<int>(f.v * o.grid_rows / camera.height));
-    entries.push_back(
-        {row * o.grid_cols + col, Rng(o.seed, frame, f.id, Stage::kBudget).Next(), i});
-  }
-  std::sort(entries.begin(), entries.end(), [features](const Entry& a, const Entry& b) {
-    if (a.cell != b.cell) return a.cell < b.cell;
-    if (a.key != b.key) return a.key < b.key;
-    return (*features)[a.index].id < (*features)[b.index].id;
-  });
-  std::vector<size_t> cell_begin(num_cells + 1, 0);
-  for (const Entry& e : entries) ++cell_begin[e.cell + 1];
-  std::partial_sum(cell_begin.begin(), cell_begin.end(), cell_begin.begin());
-  // A random cell order for this frame, so the last partial round favours no image region.
-  std::vector<std::pair<uint64_t, int>> order(num_cells);
-  for (int c = 0; c < num_cells; ++c) {
-    order[c] = {Rng(o.seed, frame, static_cast<uint64_t>(c), Stage::kBudgetCells).Next(), c};
-  }
-  std::sort(order.begin(), order.end());
-  std::vector<ProjectedVertex> kept;
-  kept.reserve(budget);
-  for (size_t round = 0; kept.size() < budget; ++round) {
-    for (const auto& [key, cell] : order) {
-      if (cell_begin[cell] + round < cell_begin[cell + 1]) {
-        kept.push_back((*features)[entries[cell_begin[cell] + round].index]);
-        if (kept.size() == budget) break;
-      }
-    }
-  }
-  features->swap(kept);
-}
-
 void ApplyWrongIds(const FeatureNoiseOptions& o, uint32_t num_vertices, uint64_t frame,
                    std::vector<ProjectedVertex>* features) {
   // Process in id order so the assignment of replacement ids is order-independent.
@@ -153,33 +103,26 @@ void ApplyWrongIds(const FeatureNoiseOptions& o, uint32_t num_vertices, uint64_t
 
 bool FeatureNoiseOptions::Enabled() const {
   return pixel_noise_sigma > 0 || quantization_px > 0 || dropout_probability > 0 ||
-         wrong_id_fraction > 0 || budget > 0;
+         wrong_id_fraction > 0;
 }
 
-bool FeatureNoiseOptions::Check(std::string* why) const {
-  auto fail = [why](const char* msg) {
-    if (why) *why = msg;
-    return false;
-  };
+Status FeatureNoiseOptions::Check() const {
   if (!std::isfinite(pixel_noise_sigma) || pixel_noise_sigma < 0)
-    return fail("pixel noise sigma must be finite and >= 0");
+    return Status::Error("pixel noise sigma must be finite and >= 0");
   if (!std::isfinite(quantization_px) || quantization_px < 0)
-    return fail("quantization step must be finite and >= 0 (0: off)");
+    return Status::Error("quantization step must be finite and >= 0 (0: off)");
   if (!(dropout_probability >= 0 && dropout_probability <= 1))
-    return fail("dropout probability must be in [0, 1]");
+    return Status::Error("dropout probability must be in [0, 1]");
   if (!(wrong_id_fraction >= 0 && wrong_id_fraction <= 1))
-    return fail("wrong id fraction must be in [0, 1]");
-  if (budget < 0) return fail("feature budget must be >= 0 (0: unlimited)");
-  if (grid_cols < 1 || grid_rows < 1 || grid_cols * static_cast<int64_t>(grid_rows) > kMaxGridCells)
-    return fail("budget grid must have >= 1 column and row and at most 4096 cells");
-  return true;
+    return Status::Error("wrong id fraction must be in [0, 1]");
+  return Status::Ok();
 }
 
 void ApplyFeatureNoise(const FeatureNoiseOptions& o, const Camera& camera,
                        uint32_t num_scene_vertices, uint64_t frame_index,
                        std::vector<ProjectedVertex>* features) {
-  std::string why;
-  M2S_CHECK(o.Check(&why)) << why;
+  const Status valid = o.Check();
+  M2S_CHECK(valid) << valid.message();
   M2S_CHECK(features != nullptr);
   if (!o.Enabled()) {
     std::sort(features->begin(), features->end(),
@@ -210,7 +153,6 @@ void ApplyFeatureNoise(const FeatureNoiseOptions& o, const Camera& camera,
     (*features)[kept++] = f;
   }
   features->resize(kept);
-  if (o.budget > 0) ApplyBudget(o, camera, frame_index, features);
   if (o.wrong_id_fraction > 0) ApplyWrongIds(o, num_scene_vertices, frame_index, features);
   std::sort(features->begin(), features->end(),
             [](const ProjectedVertex& a, const ProjectedVertex& b) { return a.id < b.id; });

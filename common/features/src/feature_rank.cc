@@ -1,7 +1,9 @@
 #include "m2s/common/feature_rank.h"
 
 #include <algorithm>
+#include <cmath>
 #include <limits>
+#include <numeric>
 
 namespace m2s {
 
@@ -32,6 +34,76 @@ size_t KeepLowestRanked(int budget, std::vector<VertexFeature>* features) {
   std::erase_if(*features,
                 [threshold](const VertexFeature& f) { return FeatureRank(f.id) > threshold; });
   return before - features->size();
+}
+
+FeatureGrid FeatureGrid::ForImage(int width, int height) {
+  FeatureGrid grid;
+  if (width <= 0 || height <= 0) return grid;
+  grid.cols = kGridCols;
+  grid.rows = std::max(1, static_cast<int>(std::lround(kGridCols * static_cast<double>(height) /
+                                                       static_cast<double>(width))));
+  grid.cell_width = static_cast<double>(width) / grid.cols;
+  grid.cell_height = static_cast<double>(height) / grid.rows;
+  return grid;
+}
+
+int FeatureGrid::CellOf(double u, double v) const {
+  auto index = [](double x, double step, int count) {
+    const double i = std::floor(x / step);
+    if (!(i >= 0.0)) return 0;  // negative or NaN
+    return i >= count - 1 ? count - 1 : static_cast<int>(i);
+  };
+  return index(v, cell_height, rows) * cols + index(u, cell_width, cols);
+}
+
+std::vector<uint32_t> SelectBalanced(std::span<const VertexId> ids, std::span<const int> cells,
+                                     int budget) {
+  const size_t n = ids.size();
+  std::vector<uint32_t> kept(n);
+  std::iota(kept.begin(), kept.end(), 0u);
+  if (budget <= 0 || n <= static_cast<size_t>(budget)) return kept;
+  struct Key {
+    uint64_t rank;
+    int cell;
+    uint32_t level;
+    uint32_t index;
+  };
+  std::vector<Key> keys(n);
+  for (size_t i = 0; i < n; ++i) {
+    keys[i] = {FeatureRank(ids[i]), cells[i], 0, static_cast<uint32_t>(i)};
+  }
+  // Levels: the place of each feature in its cell's rank order.
+  std::sort(keys.begin(), keys.end(), [](const Key& a, const Key& b) {
+    return a.cell != b.cell ? a.cell < b.cell : a.rank < b.rank;
+  });
+  for (size_t i = 0; i < n; ++i) {
+    keys[i].level = (i > 0 && keys[i].cell == keys[i - 1].cell) ? keys[i - 1].level + 1 : 0;
+  }
+  // The `budget` lowest by (level, rank); distinct ids have distinct ranks, so no ties.
+  const auto by_level = [](const Key& a, const Key& b) {
+    return a.level != b.level ? a.level < b.level : a.rank < b.rank;
+  };
+  std::nth_element(keys.begin(), keys.begin() + (budget - 1), keys.end(), by_level);
+  kept.resize(static_cast<size_t>(budget));
+  for (int i = 0; i < budget; ++i) kept[i] = keys[i].index;
+  std::sort(kept.begin(), kept.end());
+  return kept;
+}
+
+size_t KeepBalanced(int budget, const FeatureGrid& grid, std::vector<VertexFeature>* features) {
+  const size_t n = features->size();
+  if (budget <= 0 || n <= static_cast<size_t>(budget)) return 0;
+  std::vector<VertexId> ids(n);
+  std::vector<int> cells(n);
+  for (size_t i = 0; i < n; ++i) {
+    const VertexFeature& f = (*features)[i];
+    ids[i] = f.id;
+    cells[i] = grid.CellOf(f.uv.x(), f.uv.y());
+  }
+  const std::vector<uint32_t> kept = SelectBalanced(ids, cells, budget);
+  for (size_t k = 0; k < kept.size(); ++k) (*features)[k] = (*features)[kept[k]];
+  features->resize(kept.size());
+  return n - kept.size();
 }
 
 }  // namespace m2s

@@ -16,19 +16,17 @@ Camera Camera::FromHorizontalFov(int width, int height, double hfov_deg, double 
   return c;
 }
 
-bool Camera::Check(std::string* why) const {
-  auto fail = [why](const char* msg) {
-    if (why) *why = msg;
-    return false;
-  };
-  if (width <= 0 || height <= 0) return fail("camera width and height must be positive");
-  if (width > 65536 || height > 65536) return fail("camera width and height must be <= 65536");
+Status Camera::Check() const {
+  if (width <= 0 || height <= 0) return Status::Error("camera width and height must be positive");
+  if (width > 65536 || height > 65536)
+    return Status::Error("camera width and height must be <= 65536");
   if (!std::isfinite(fx) || !std::isfinite(fy) || fx <= 0 || fy <= 0)
-    return fail("camera fx and fy must be finite and positive");
-  if (!std::isfinite(cx) || !std::isfinite(cy)) return fail("camera cx and cy must be finite");
+    return Status::Error("camera fx and fy must be finite and positive");
+  if (!std::isfinite(cx) || !std::isfinite(cy))
+    return Status::Error("camera cx and cy must be finite");
   if (!std::isfinite(near) || !std::isfinite(far) || near <= 0 || far <= near)
-    return fail("camera depth range must satisfy 0 < near < far");
-  return true;
+    return Status::Error("camera depth range must satisfy 0 < near < far");
+  return Status::Ok();
 }
 
 Eigen::Matrix3d Camera::K() const {

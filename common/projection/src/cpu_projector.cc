@@ -29,21 +29,17 @@ constexpr int kMaxThreads = 256;
 
 }  // namespace
 
-bool ProjectorOptions::Check(std::string* why) const {
-  auto fail = [why](const char* msg) {
-    if (why) *why = msg;
-    return false;
-  };
+Status ProjectorOptions::Check() const {
   if (!std::isfinite(occlusion_resolution_scale) || occlusion_resolution_scale <= 0.0 ||
       occlusion_resolution_scale > 1.0)
-    return fail("occlusion_resolution_scale must be in (0, 1]");
+    return Status::Error("occlusion_resolution_scale must be in (0, 1]");
   if (!std::isfinite(occlusion_depth_bias_relative) || occlusion_depth_bias_relative < 0.0)
-    return fail("occlusion_depth_bias_relative must be finite and >= 0");
+    return Status::Error("occlusion_depth_bias_relative must be finite and >= 0");
   if (!std::isfinite(occlusion_depth_bias_m) || occlusion_depth_bias_m < 0.0)
-    return fail("occlusion_depth_bias_m must be finite and >= 0");
+    return Status::Error("occlusion_depth_bias_m must be finite and >= 0");
   if (num_threads < 0 || num_threads > kMaxThreads)
-    return fail("num_threads must be in [0, 256] (0: hardware concurrency)");
-  return true;
+    return Status::Error("num_threads must be in [0, 256] (0: hardware concurrency)");
+  return Status::Ok();
 }
 
 struct CpuProjector::Impl {
@@ -183,8 +179,7 @@ int CpuProjector::num_threads() const { return impl_->pool->size(); }
 
 Expected<std::unique_ptr<CpuProjector>> CpuProjector::Create(const Scene& scene,
                                                              const ProjectorOptions& options) {
-  std::string why;
-  if (!options.Check(&why)) return Expected<std::unique_ptr<CpuProjector>>::Error(why);
+  if (Status s = options.Check(); !s) return s;
   const size_t n = scene.positions.size();
   if (n >= std::numeric_limits<VertexId>::max()) {
     return Expected<std::unique_ptr<CpuProjector>>::Error(
@@ -241,8 +236,7 @@ Status CpuProjector::Project(const Pose3& world_from_camera, const Camera& camer
                              std::vector<ProjectedVertex>* out) {
   if (out == nullptr) return Status::Error("CpuProjector::Project: null output");
   out->clear();
-  std::string why;
-  if (!camera.Check(&why)) return Status::Error(why);
+  if (Status s = camera.Check(); !s) return s;
   if (!world_from_camera.AllFinite()) return Status::Error("camera pose is not finite");
 
   Impl& m = *impl_;

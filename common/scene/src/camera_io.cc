@@ -23,8 +23,7 @@ Expected<Camera> ReadCameraJson(const std::string& path) {
   } catch (const nlohmann::json::exception& e) {
     return Expected<Camera>::Error("bad camera file " + path + ": " + e.what());
   }
-  std::string why;
-  if (!camera.Check(&why)) return Expected<Camera>::Error("bad camera file " + path + ": " + why);
+  if (Status s = camera.Check(); !s) return s.Prefixed("bad camera file " + path + ": ");
   return camera;
 }
 

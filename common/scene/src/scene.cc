@@ -79,46 +79,49 @@ struct Loader {
 };
 
 // What assimp's ValidateDataStructure checks and we rely on, without its rule that every mesh
-// has faces (point clouds are valid scenes here). Returns an empty string when valid.
-std::string Validate(const aiScene& ai) {
-  if (ai.mNumMeshes > 0 && ai.mMeshes == nullptr) return "mesh array missing";
+// has faces (point clouds are valid scenes here).
+Status Validate(const aiScene& ai) {
+  if (ai.mNumMeshes > 0 && ai.mMeshes == nullptr) return Status::Error("mesh array missing");
   for (unsigned int m = 0; m < ai.mNumMeshes; ++m) {
     const aiMesh* mesh = ai.mMeshes[m];
-    if (mesh == nullptr) return "mesh " + std::to_string(m) + " missing";
+    if (mesh == nullptr) return Status::Error("mesh " + std::to_string(m) + " missing");
     if (mesh->mNumVertices > 0 && mesh->mVertices == nullptr) {
-      return "mesh " + std::to_string(m) + " has no vertex array";
+      return Status::Error("mesh " + std::to_string(m) + " has no vertex array");
     }
     if (mesh->mNumFaces > 0 && mesh->mFaces == nullptr) {
-      return "mesh " + std::to_string(m) + " has no face array";
+      return Status::Error("mesh " + std::to_string(m) + " has no face array");
     }
     for (unsigned int f = 0; f < mesh->mNumFaces; ++f) {
       const aiFace& face = mesh->mFaces[f];
       if (face.mNumIndices == 0 || face.mIndices == nullptr) {
-        return "mesh " + std::to_string(m) + " face " + std::to_string(f) + " has no indices";
+        return Status::Error("mesh " + std::to_string(m) + " face " + std::to_string(f) +
+                             " has no indices");
       }
       for (unsigned int c = 0; c < face.mNumIndices; ++c) {
         if (face.mIndices[c] >= mesh->mNumVertices) {
-          return "mesh " + std::to_string(m) + " face " + std::to_string(f) +
-                 " indexes a vertex out of range";
+          return Status::Error("mesh " + std::to_string(m) + " face " + std::to_string(f) +
+                               " indexes a vertex out of range");
         }
       }
     }
   }
   std::vector<const aiNode*> stack = {ai.mRootNode};
   for (size_t visits = 0; !stack.empty(); ++visits) {
-    if (visits >= (size_t{1} << 24)) return "node hierarchy too large or cyclic";
+    if (visits >= (size_t{1} << 24)) return Status::Error("node hierarchy too large or cyclic");
     const aiNode* node = stack.back();
     stack.pop_back();
-    if (node == nullptr) return "null node in the hierarchy";
+    if (node == nullptr) return Status::Error("null node in the hierarchy");
     for (unsigned int k = 0; k < node->mNumMeshes; ++k) {
       if (node->mMeshes == nullptr || node->mMeshes[k] >= ai.mNumMeshes) {
-        return "node '" + std::string(node->mName.C_Str()) + "' refers to a missing mesh";
+        return Status::Error("node '" + std::string(node->mName.C_Str()) +
+                             "' refers to a missing mesh");
       }
     }
-    if (node->mNumChildren > 0 && node->mChildren == nullptr) return "node children missing";
+    if (node->mNumChildren > 0 && node->mChildren == nullptr)
+      return Status::Error("node children missing");
     for (unsigned int c = 0; c < node->mNumChildren; ++c) stack.push_back(node->mChildren[c]);
   }
-  return "";
+  return Status::Ok();
 }
 
 std::string Lower(std::string s) {
@@ -128,23 +131,19 @@ std::string Lower(std::string s) {
 
 }  // namespace
 
-bool SceneLoadOptions::Check(std::string* why) const {
-  auto fail = [why](const char* message) {
-    if (why) *why = message;
-    return false;
-  };
-  if (!std::isfinite(scale) || scale <= 0.0) return fail("scale must be positive and finite");
+Status SceneLoadOptions::Check() const {
+  if (!std::isfinite(scale) || scale <= 0.0)
+    return Status::Error("scale must be positive and finite");
   if (!rotation.coeffs().allFinite() || std::abs(rotation.norm() - 1.0) > 1e-6) {
-    return fail("rotation must be a finite unit quaternion");
+    return Status::Error("rotation must be a finite unit quaternion");
   }
-  if (!translation.allFinite()) return fail("translation must be finite");
-  return true;
+  if (!translation.allFinite()) return Status::Error("translation must be finite");
+  return Status::Ok();
 }
 
 Expected<Scene> LoadScene(const std::string& path, const SceneLoadOptions& options) {
   const std::string where = "scene '" + path + "': ";
-  std::string why;
-  if (!options.Check(&why)) return Expected<Scene>::Error(where + "invalid load options: " + why);
+  if (Status s = options.Check(); !s) return s.Prefixed(where + "invalid load options: ");
   std::error_code ec;
   const std::filesystem::path fs_path(path);
   if (!std::filesystem::exists(fs_path, ec)) return Expected<Scene>::Error(where + "no such file");
@@ -172,9 +171,7 @@ Expected<Scene> LoadScene(const std::string& path, const SceneLoadOptions& optio
   if (ai->mRootNode == nullptr || ai->mNumMeshes == 0) {
     return Expected<Scene>::Error(where + "no vertices (the file has no meshes)");
   }
-  if (const std::string invalid = Validate(*ai); !invalid.empty()) {
-    return Expected<Scene>::Error(where + "invalid data: " + invalid);
-  }
+  if (Status valid = Validate(*ai); !valid) return valid.Prefixed(where + "invalid data: ");
   ai = importer.ApplyPostProcessing(aiProcess_Triangulate);
   if (ai == nullptr) {
     return Expected<Scene>::Error(where + "triangulation failed: " + importer.GetErrorString());

@@ -58,8 +58,8 @@ std::vector<uint8_t> AssociatedData(std::string_view channel, const uint8_t* hea
 }
 
 template <typename T>
-DecodeResult<T> Fail(DropReason reason, const std::string& message) {
-  return DecodeResult<T>::Error(reason, message);
+Expected<T> Fail(DropReason reason, const std::string& message) {
+  return Expected<T>::Error(reason, message);
 }
 
 }  // namespace
@@ -107,8 +107,7 @@ Expected<BusSecurityOptions> MakeBusSecurity(const std::string& key_file, bool e
                                              double max_message_age_s) {
   BusSecurityOptions security;
   security.opener.max_age_s = max_message_age_s;
-  std::string why;
-  if (!security.opener.Check(&why)) return Status::Error("--max-message-age: " + why);
+  if (Status s = security.opener.Check(); !s) return s.Prefixed("--max-message-age: ");
   if (encrypt && key_file.empty()) return Status::Error("--encrypt needs --key-file");
   security.encrypt = encrypt;
   if (!key_file.empty()) {
@@ -160,17 +159,14 @@ std::vector<uint8_t> BusSealer::Seal(std::string_view channel, const uint8_t* pa
   return out;
 }
 
-bool BusOpenerOptions::Check(std::string* why) const {
-  auto fail = [why](const char* message) {
-    if (why) *why = message;
-    return false;
-  };
-  if (!(max_age_s >= 0) || !std::isfinite(max_age_s)) return fail("max_age_s must be >= 0");
+Status BusOpenerOptions::Check() const {
+  if (!(max_age_s >= 0) || !std::isfinite(max_age_s))
+    return Status::Error("max_age_s must be >= 0");
   if (replay_window < 64 || replay_window > (1 << 16)) {
-    return fail("replay_window must be in [64, 65536]");
+    return Status::Error("replay_window must be in [64, 65536]");
   }
-  if (max_senders <= 0) return fail("max_senders must be positive");
-  return true;
+  if (max_senders <= 0) return Status::Error("max_senders must be positive");
+  return Status::Ok();
 }
 
 BusOpener::BusOpener(std::optional<BusKey> key, BusOpenerOptions options)
@@ -178,8 +174,8 @@ BusOpener::BusOpener(std::optional<BusKey> key, BusOpenerOptions options)
   SodiumReady();
 }
 
-DecodeResult<OpenedMessage> BusOpener::Open(std::string_view channel, const uint8_t* data,
-                                            size_t size, int64_t now_wall_us) {
+Expected<OpenedMessage> BusOpener::Open(std::string_view channel, const uint8_t* data, size_t size,
+                                        int64_t now_wall_us) {
   OpenedMessage opened;
   if (!key_) {
     opened.data = data;

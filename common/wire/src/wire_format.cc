@@ -108,8 +108,8 @@ class Reader {
 };
 
 template <typename T>
-DecodeResult<T> Fail(DropReason reason, const std::string& message) {
-  return DecodeResult<T>::Error(reason, message);
+Expected<T> Fail(DropReason reason, const std::string& message) {
+  return Expected<T>::Error(reason, message);
 }
 
 // Checks the type hash, then walks the byte layout with `layout(Reader*)` (the bytes after the
@@ -117,7 +117,7 @@ DecodeResult<T> Fail(DropReason reason, const std::string& message) {
 // decodes with the generated code: lcm-gen's decoders trust lengths (a string length of
 // INT32_MIN reads out of bounds) and size arrays by counts before reading them.
 template <typename Message, typename Layout>
-DecodeResult<Message> DecodeChecked(const void* data, size_t size, Layout&& layout) {
+Expected<Message> DecodeChecked(const void* data, size_t size, Layout&& layout) {
   const std::string_view name = Message::getTypeName();  // strings built on failure only
   Reader reader(data, size);
   int64_t hash = 0;
@@ -160,58 +160,6 @@ bool AllFinite(const double* values, int n) {
 }
 
 }  // namespace
-
-const char* ToString(DropReason reason) {
-  switch (reason) {
-    case DropReason::kBadBytes:
-      return "bad_bytes";
-    case DropReason::kWrongFingerprint:
-      return "wrong_fingerprint";
-    case DropReason::kBadVersion:
-      return "bad_version";
-    case DropReason::kBadCamera:
-      return "bad_camera";
-    case DropReason::kNonFinite:
-      return "non_finite";
-    case DropReason::kBadUvShift:
-      return "bad_uv_shift";
-    case DropReason::kNegativeId:
-      return "negative_id";
-    case DropReason::kOutOfImage:
-      return "out_of_image";
-    case DropReason::kDuplicateId:
-      return "duplicate_id";
-    case DropReason::kTooManyFeatures:
-      return "too_many_features";
-    case DropReason::kSeqNotIncreasing:
-      return "seq_not_increasing";
-    case DropReason::kUnknownSession:
-      return "unknown_session";
-    case DropReason::kEndedSession:
-      return "ended_session";
-    case DropReason::kMaxSessions:
-      return "max_sessions";
-    case DropReason::kCameraChanged:
-      return "camera_changed";
-    case DropReason::kBadSessionMessage:
-      return "bad_session_message";
-    case DropReason::kNotAuthenticated:
-      return "not_authenticated";
-    case DropReason::kReplayed:
-      return "replayed";
-    case DropReason::kStale:
-      return "stale";
-    case DropReason::kTooManySenders:
-      return "too_many_senders";
-    case DropReason::kSeqJump:
-      return "seq_jump";
-    case DropReason::kSpoofedSession:
-      return "spoofed_session";
-    case DropReason::kCount:
-      break;
-  }
-  return "unknown";
-}
 
 int UvShiftFor(int width, int height) {
   const int64_t size = std::max(width, height);
@@ -256,7 +204,7 @@ camera_t ToMessage(const Camera& camera) {
   return m;
 }
 
-DecodeResult<Pose3> FromMessage(const pose_t& m) {
+Expected<Pose3> FromMessage(const pose_t& m) {
   if (!AllFinite(m.t, 3) || !AllFinite(m.q, 4)) {
     return Fail<Pose3>(DropReason::kNonFinite, "pose has a non-finite value");
   }
@@ -270,7 +218,7 @@ DecodeResult<Pose3> FromMessage(const pose_t& m) {
   return Pose3(q, Eigen::Vector3d(m.t[0], m.t[1], m.t[2]));
 }
 
-DecodeResult<Camera> FromMessage(const camera_t& m) {
+Expected<Camera> FromMessage(const camera_t& m) {
   const double values[] = {m.fx, m.fy, m.cx, m.cy, m.near_m, m.far_m};
   if (!AllFinite(values, 6)) {
     return Fail<Camera>(DropReason::kNonFinite, "camera has a non-finite value");
@@ -284,8 +232,9 @@ DecodeResult<Camera> FromMessage(const camera_t& m) {
   camera.cy = m.cy;
   camera.near = m.near_m;
   camera.far = m.far_m;
-  std::string why;
-  if (!camera.Check(&why)) return Fail<Camera>(DropReason::kBadCamera, "camera: " + why);
+  if (Status valid = camera.Check(); !valid) {
+    return Fail<Camera>(DropReason::kBadCamera, "camera: " + valid.message());
+  }
   if (UvShiftFor(camera.width, camera.height) < 0) {
     return Fail<Camera>(DropReason::kBadCamera, "camera: image larger than 65536 px");
   }
@@ -319,8 +268,8 @@ feature_frame_t ToMessage(const FeatureFrame& frame) {
   return m;
 }
 
-DecodeResult<FeatureFrame> FromMessage(const feature_frame_t& m, const FrameLimits& limits) {
-  using R = DecodeResult<FeatureFrame>;
+Expected<FeatureFrame> FromMessage(const feature_frame_t& m, const FrameLimits& limits) {
+  using R = Expected<FeatureFrame>;
   if (m.version != feature_frame_t::VERSION) {
     return R::Error(DropReason::kBadVersion, "frame version " + std::to_string(m.version));
   }
@@ -388,9 +337,9 @@ size_t FeatureFrameEncodedSize(size_t num_features) {
   return kHashBytes + 2 + 4 * 8 + kCameraBytes + 1 + 4 + 8 * num_features + 1 + kPoseBytes;
 }
 
-DecodeResult<FeatureFrame> DecodeFeatureFrame(const void* data, size_t size,
-                                              const FrameLimits& limits) {
-  using R = DecodeResult<FeatureFrame>;
+Expected<FeatureFrame> DecodeFeatureFrame(const void* data, size_t size,
+                                          const FrameLimits& limits) {
+  using R = Expected<FeatureFrame>;
   auto message = DecodeChecked<feature_frame_t>(data, size, [&limits](Reader* r) {
     int32_t count = 0;
     if (!r->Skip(2 + 4 * 8 + kCameraBytes + 1) || !r->SkipArray(4 + 2 + 2, &count) ||
@@ -405,7 +354,7 @@ DecodeResult<FeatureFrame> DecodeFeatureFrame(const void* data, size_t size,
   return FromMessage(*message, limits);
 }
 
-DecodeResult<session_control_t> DecodeSessionControl(const void* data, size_t size) {
+Expected<session_control_t> DecodeSessionControl(const void* data, size_t size) {
   auto m = DecodeChecked<session_control_t>(data, size, [](Reader* r) {
     // version, type, 4 int64, client_name, reason, camera, flags.
     return r->Skip(2 + 1 + 4 * 8) && r->SkipString() && r->SkipString() &&
@@ -423,7 +372,7 @@ DecodeResult<session_control_t> DecodeSessionControl(const void* data, size_t si
   return m;
 }
 
-DecodeResult<pose_estimate_t> DecodePoseEstimate(const void* data, size_t size) {
+Expected<pose_estimate_t> DecodePoseEstimate(const void* data, size_t size) {
   auto m = DecodeChecked<pose_estimate_t>(data, size, [](Reader* r) {
     // version, 5 int64, state, pose, 2 int32, keyframe_created, tracking_ms, map_revision.
     return r->Skip(2 + 5 * 8 + 1 + kPoseBytes + 2 * 4 + 1 + 4 + 8);
@@ -435,7 +384,7 @@ DecodeResult<pose_estimate_t> DecodePoseEstimate(const void* data, size_t size) 
   return m;
 }
 
-DecodeResult<map_delta_t> DecodeMapDelta(const void* data, size_t size) {
+Expected<map_delta_t> DecodeMapDelta(const void* data, size_t size) {
   auto m = DecodeChecked<map_delta_t>(data, size, [](Reader* r) {
     // version, 4 int64, full; keyframes, removed keyframes, points (id + xyz), removed points.
     int32_t n = 0;
@@ -456,7 +405,7 @@ DecodeResult<map_delta_t> DecodeMapDelta(const void* data, size_t size) {
   return m;
 }
 
-DecodeResult<server_stats_t> DecodeServerStats(const void* data, size_t size) {
+Expected<server_stats_t> DecodeServerStats(const void* data, size_t size) {
   return DecodeChecked<server_stats_t>(data, size, [](Reader* r) {
     // version, 2 int64, int32, 3 int64; num_drop_reasons strings then as many int64; 2 floats.
     int32_t n = 0;

@@ -32,10 +32,9 @@ LcmServer::LcmServer(LcmServerOptions options, SystemFactory factory)
 LcmServer::~LcmServer() { Stop(); }
 
 Status LcmServer::Start() {
-  std::string why;
-  if (!options_.server.Check(&why)) return Status::Error("server options: " + why);
+  if (Status s = options_.server.Check(); !s) return s.Prefixed("server options: ");
   if (!(options_.stats_period_s >= 0)) return Status::Error("stats period must be >= 0");
-  if (!options_.bus.opener.Check(&why)) return Status::Error("bus options: " + why);
+  if (Status s = options_.bus.opener.Check(); !s) return s.Prefixed("bus options: ");
   lcm_ = std::make_unique<lcm::LCM>(options_.lcm_url);
   if (!lcm_->good()) {
     lcm_.reset();

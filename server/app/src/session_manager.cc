@@ -36,20 +36,17 @@ ServerOptions WithInstance(ServerOptions options) {
 
 }  // namespace
 
-bool ServerOptions::Check(std::string* why) const {
-  auto fail = [why](const char* message) {
-    if (why) *why = message;
-    return false;
-  };
-  if (max_sessions <= 0) return fail("max_sessions must be positive");
-  if (!(session_timeout_s > 0)) return fail("session_timeout_s must be positive");
-  if (max_features <= 0) return fail("max_features must be positive");
-  if (!(map_rate_hz > 0) || map_rate_hz > 1000) return fail("map_rate_hz must be in (0, 1000]");
-  if (queue_capacity <= 0) return fail("queue_capacity must be positive");
-  if (max_seq_jump <= 0) return fail("max_seq_jump must be positive");
-  if (max_ended_sessions <= 0) return fail("max_ended_sessions must be positive");
-  if (!(drop_log_period_s >= 0)) return fail("drop_log_period_s must be >= 0");
-  return true;
+Status ServerOptions::Check() const {
+  if (max_sessions <= 0) return Status::Error("max_sessions must be positive");
+  if (!(session_timeout_s > 0)) return Status::Error("session_timeout_s must be positive");
+  if (max_features <= 0) return Status::Error("max_features must be positive");
+  if (!(map_rate_hz > 0) || map_rate_hz > 1000)
+    return Status::Error("map_rate_hz must be in (0, 1000]");
+  if (queue_capacity <= 0) return Status::Error("queue_capacity must be positive");
+  if (max_seq_jump <= 0) return Status::Error("max_seq_jump must be positive");
+  if (max_ended_sessions <= 0) return Status::Error("max_ended_sessions must be positive");
+  if (!(drop_log_period_s >= 0)) return Status::Error("drop_log_period_s must be >= 0");
+  return Status::Ok();
 }
 
 int64_t ServerCounters::total_drops() const {
@@ -67,8 +64,8 @@ SessionManager::SessionManager(ServerOptions options, PublishFn publish, SystemF
     : options_(WithInstance(std::move(options))),
       publish_(std::move(publish)),
       factory_(std::move(factory)) {
-  std::string why;
-  M2S_CHECK(options_.Check(&why)) << why;
+  const Status valid = options_.Check();
+  M2S_CHECK(valid) << valid.message();
   M2S_CHECK(publish_ && factory_) << "publish and factory must be set";
   tracking_ms_ring_.reserve(kTrackingRingSize);
   last_drop_log_s_.fill(-1e9);

@@ -19,7 +19,7 @@ std::vector<VertexId> SortedIds(const wire::FeatureFrame& frame) {
   return ids;
 }
 
-TEST(FrameSourceTest, SendBudgetSendsTheLowestRankedVisibleVertices) {
+TEST(FrameSourceTest, SendBudgetSendsTheBalancedSelectionOfTheVisibleVertices) {
   const Scene scene = MakeDefaultScene();
   const Camera camera = Camera::FromHorizontalFov(640, 480, 90.0);
   auto projector = CpuProjector::Create(scene, ProjectorOptions{});
@@ -33,11 +33,11 @@ TEST(FrameSourceTest, SendBudgetSendsTheLowestRankedVisibleVertices) {
   ASSERT_TRUE(full.ok() && cut.ok());
   ASSERT_GT(full->features.size(), 3000u);  // the default room is dense
   ASSERT_EQ(cut->features.size(), 1500u);
-  // Reference: rank every visible id, keep the 1500 lowest.
-  std::vector<VertexId> expected = SortedIds(*full);
-  std::sort(expected.begin(), expected.end(),
-            [](VertexId a, VertexId b) { return FeatureRank(a) < FeatureRank(b); });
-  expected.resize(1500);
+  // Reference: the balanced selection of the whole view (feature_rank_test checks it).
+  std::vector<VertexFeature> selected = full->features;
+  KeepBalanced(1500, FeatureGrid::ForImage(camera.width, camera.height), &selected);
+  std::vector<VertexId> expected;
+  for (const VertexFeature& f : selected) expected.push_back(f.id);
   std::sort(expected.begin(), expected.end());
   EXPECT_EQ(SortedIds(*cut), expected);
   // Each kept feature carries its own projection.

@@ -215,7 +215,10 @@ TEST_F(GpuOcclusionTest, AgreesWithCpuOnDefaultScene) {
   const double agreement = static_cast<double>(total_common) / static_cast<double>(total_union);
   std::cout << "GPU/CPU occlusion agreement on the default scene: " << 100.0 * agreement << "% of "
             << total_union << " ids, " << total_hidden << " hidden by the CPU rule\n";
-  EXPECT_GT(agreement, 0.995);
+  // Measured on Mesa llvmpipe: 99.9966 % (2 of 58799 ids differ, rasterisation ties at
+  // triangle edges). The bound allows 9x that (0.03 %, about 18 ids); a wrong depth rule or
+  // bias would move thousands.
+  EXPECT_GT(agreement, 0.9997);
 }
 
 }  // namespace

@@ -25,13 +25,13 @@ TEST(ControlEvents, RejectsMalformedText) {
 
 TEST(XrClientOptions, CheckRejectsBadValues) {
   XrClientOptions options;
-  std::string why;
-  EXPECT_TRUE(options.Check(&why)) << why;
+  Status why;
+  EXPECT_TRUE((why = options.Check())) << why.message();
   options.align_every_frames = 0;
-  EXPECT_FALSE(options.Check(&why));
+  EXPECT_FALSE((why = options.Check()));
   options = XrClientOptions();
   options.camera.width = -1;
-  EXPECT_FALSE(options.Check(&why));
+  EXPECT_FALSE((why = options.Check()));
 }
 
 }  // namespace

@@ -1,9 +1,6 @@
-// Session lifecycle of the real m2s_xr_client driven by the simulated runtime's script, the
-// GPU projector on the app's own context, and the LCM mode against a separate m2s_server
-// inside a private network namespace.
-#include <unistd.h>
-
-#include "m2s/common/evaluation.h"
+// Session lifecycle of the real m2s_xr_client driven by the simulated runtime's script, and
+// the GPU projector on the app's own context. The LCM mode against a separate m2s_server runs
+// in real time: it is in xr_client_realtime_test.cc.
 #include "xr_client_test_util.h"
 
 namespace m2s::xr_test {
@@ -46,9 +43,13 @@ TEST(XrClientLifecycle, FocusLossHiddenSessionLossControlsAndRuntimeExit) {
     EXPECT_TRUE(HasState(metrics, state)) << state;
   }
   // Frames are projected only while the session is visible: not while hidden (10 frames), not
-  // in the SYNCHRONIZED frames after each session start, not during the loss.
-  EXPECT_LT(metrics["frames_sent"].get<int>(), 190);
-  EXPECT_GT(metrics["frames_sent"].get<int>(), 150);
+  // in the SYNCHRONIZED frame after each session start, not during the loss. By the script,
+  // the runtime waited 200 frames: session 1 shows frames 2-99 but for 70-79, session 2
+  // frames 102-199, 186 in all (measured: 185 sent). The app learns of a state change from
+  // the event it polls before its next frame, so each of the four changes of visibility may
+  // shift one frame.
+  constexpr int kVisibleFrames = (99 - 2 + 1) - 10 + (199 - 102 + 1);
+  EXPECT_NEAR(metrics["frames_sent"].get<int>(), kVisibleFrames, 4);
   EXPECT_TRUE(fs::exists(dir / "out" / "trajectory.tum"));
 }
 
@@ -91,41 +92,6 @@ TEST(XrClientLifecycle, GpuProjectorOnTheAppsContext) {
   EXPECT_EQ(metrics["projector"], "gpu");
   EXPECT_EQ(metrics["frames"], 30);
   EXPECT_GE(metrics["frames_sent"].get<int>(), 28);
-}
-
-TEST(XrClientLifecycle, OverLcmToASeparateServer) {
-  if (std::system("unshare -rn true > /dev/null 2>&1") != 0) {
-    GTEST_SKIP() << "network namespaces (unshare -rn) are not permitted here";
-  }
-  const std::string server = kBin + "/m2s_server";
-  if (access(server.c_str(), X_OK) != 0) GTEST_SKIP() << "m2s_server is not built";
-  const fs::path dir = TestDir();
-  const Trajectory played = WritePlayedTrajectory(dir / "head.tum", 4.5);
-  const std::string url = "udpm://239.255.76.67:7667?ttl=0";
-  // Loopback multicast inside a private network namespace: nothing leaves this test. The
-  // script is a file so that its quoting stays simple.
-  const fs::path script = dir / "lcm_run.sh";
-  std::ofstream(script) << "ip link set lo up && ip route add 224.0.0.0/4 dev lo || exit 3\n"
-                        << server << " --lcm-url " << Quote(url) << " > "
-                        << Quote((dir / "server.txt").string()) << " 2>&1 &\n"
-                        << "pid=$!\n"
-                        << "M2S_XR_SIM_REALTIME=1 "
-                        << Client(dir, "",
-                                  "--lcm-url " + Quote(url) +
-                                      " --frames 300 --projector cpu --budget 2000 --no-mesh")
-                        << "\nrc=$?\nkill -INT $pid\nwait $pid\nexit $rc\n";
-  const int rc = RunBounded("unshare -rn sh " + Quote(script.string()), 180, dir / "log.txt");
-  ASSERT_EQ(rc, 0) << ReadText(dir / "log.txt") << ReadText(dir / "server.txt");
-  ExpectCleanRuntimeReport(ReadJson(dir / "runtime_report.json"));
-  auto estimate = ReadTum((dir / "out" / "trajectory.tum").string());
-  ASSERT_TRUE(estimate.ok()) << estimate.error();
-  auto reference = InterpolateReferenceAt(played, *estimate);
-  ASSERT_TRUE(reference.ok()) << reference.error();
-  auto eval = EvaluateTrajectory(*reference, *estimate);
-  ASSERT_TRUE(eval.ok()) << eval.error();
-  EXPECT_LT(eval->ate.rmse, 0.05);
-  EXPECT_GT(eval->matches.size(), 100u);
-  EXPECT_EQ(ReadJson(dir / "out" / "xr_metrics.json")["transport"], "lcm");
 }
 
 }  // namespace

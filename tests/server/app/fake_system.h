@@ -13,8 +13,7 @@ namespace m2s::testing {
 class FakeSystem final : public slam::System {
  public:
   static Expected<std::unique_ptr<slam::System>> Create(const slam::Options& options) {
-    std::string why;
-    if (!options.Check(&why)) return Status::Error(why);
+    if (Status s = options.Check(); !s) return s;
     return std::unique_ptr<slam::System>(new FakeSystem(options));
   }
   slam::TrackResult Track(const slam::Frame& frame) override {

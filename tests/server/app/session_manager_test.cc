@@ -43,7 +43,7 @@ wire::FeatureFrame Frame(int64_t session, int64_t seq) {
   wire::FeatureFrame f;
   f.session_id = session;
   f.seq = seq;
-  f.capture_time_us = seq * 100000;
+  f.capture_time_us = seq % (int64_t{1} << 40) * 100000;  // no overflow at the largest seqs
   f.camera = Camera();
   f.features = {{1, {10.f, 20.f}}, {2, {30.f, 40.f}}};
   f.ground_truth_world_from_camera =

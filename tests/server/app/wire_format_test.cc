@@ -372,11 +372,11 @@ TEST(WireFormatTest, AnyTamperedInt32NeverCrashesADecoder) {
         std::vector<uint8_t> bytes = good;
         PutI32(&bytes, offset, tampered);
         // Decoding must fail cleanly or succeed; each decoder sees every message.
-        DecodeFeatureFrame(bytes.data(), bytes.size(), {});
-        DecodeSessionControl(bytes.data(), bytes.size());
-        DecodeMapDelta(bytes.data(), bytes.size());
-        DecodeServerStats(bytes.data(), bytes.size());
-        DecodePoseEstimate(bytes.data(), bytes.size());
+        (void)DecodeFeatureFrame(bytes.data(), bytes.size(), {});
+        (void)DecodeSessionControl(bytes.data(), bytes.size());
+        (void)DecodeMapDelta(bytes.data(), bytes.size());
+        (void)DecodeServerStats(bytes.data(), bytes.size());
+        (void)DecodePoseEstimate(bytes.data(), bytes.size());
       }
     }
   }

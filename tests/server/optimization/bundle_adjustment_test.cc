@@ -216,21 +216,21 @@ TEST(BundleAdjustTest, MalformedProblemsAreRejectedUnchanged) {
 }
 
 TEST(BundleAdjustmentOptionsTest, CheckRejectsBadValues) {
-  EXPECT_TRUE(BundleAdjustmentOptions().Check(nullptr));
-  std::string why;
+  EXPECT_TRUE(BundleAdjustmentOptions().Check());
+  Status why;
   BundleAdjustmentOptions o;
   o.pixel_sigma = 0.0;
-  EXPECT_FALSE(o.Check(&why));
-  EXPECT_FALSE(why.empty());
+  EXPECT_FALSE((why = o.Check()));
+  EXPECT_FALSE(why.message().empty());
   o = {};
   o.huber_delta_px = -2.0;
-  EXPECT_FALSE(o.Check(&why));
+  EXPECT_FALSE((why = o.Check()));
   o = {};
   o.chi2_threshold = std::numeric_limits<double>::infinity();
-  EXPECT_FALSE(o.Check(&why));
+  EXPECT_FALSE((why = o.Check()));
   o = {};
   o.max_iterations = 0;
-  EXPECT_FALSE(o.Check(&why));
+  EXPECT_FALSE((why = o.Check()));
 }
 
 }  // namespace

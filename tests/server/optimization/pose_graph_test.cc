@@ -111,9 +111,9 @@ TEST(PoseGraphTest, BadInputIsRejectedAndNodesUnchanged) {
   nodes = before;
   PoseGraphOptions bad;
   bad.max_iterations = 0;
-  std::string why;
-  EXPECT_FALSE(bad.Check(&why));
-  EXPECT_FALSE(why.empty());
+  Status why;
+  EXPECT_FALSE((why = bad.Check()));
+  EXPECT_FALSE(why.message().empty());
   EXPECT_FALSE(OptimizePoseGraph(bad, &nodes, LoopEdges(truth)).success);
   EXPECT_FALSE(OptimizePoseGraph(PoseGraphOptions(), nullptr, LoopEdges(truth)).success);
   EXPECT_TRUE(unchanged());

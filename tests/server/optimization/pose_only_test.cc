@@ -146,12 +146,12 @@ TEST_F(OptimizePoseTest, BadInputIsReportedAndLeavesThePoseUnchanged) {
 }
 
 TEST(PoseOnlyOptionsTest, CheckRejectsBadValues) {
-  std::string why;
-  EXPECT_TRUE(PoseOnlyOptions().Check(&why));
+  Status why;
+  EXPECT_TRUE((why = PoseOnlyOptions().Check()));
   auto expect_rejected = [](PoseOnlyOptions o) {
-    std::string reason;
-    EXPECT_FALSE(o.Check(&reason));
-    EXPECT_FALSE(reason.empty());
+    Status reason;
+    EXPECT_FALSE((reason = o.Check()));
+    EXPECT_FALSE(reason.message().empty());
   };
   PoseOnlyOptions o;
   o.huber_delta_px = 0.0;

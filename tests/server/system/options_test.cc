@@ -19,19 +19,19 @@ template <typename T>
 void ExpectRefused(const std::function<void(T*)>& change, const std::string& field) {
   T options;
   change(&options);
-  std::string why;
-  EXPECT_FALSE(options.Check(&why)) << field;
-  EXPECT_NE(why.find(field), std::string::npos) << "'" << why << "' does not name " << field;
-  EXPECT_FALSE(options.Check(nullptr)) << field;  // `why` is optional
+  Status why;
+  EXPECT_FALSE((why = options.Check())) << field;
+  EXPECT_NE(why.message().find(field), std::string::npos)
+      << "'" << why.message() << "' does not name " << field;
 }
 
 TEST(Options, DefaultsPass) {
-  std::string why;
-  EXPECT_TRUE(InitializerOptions().Check(&why)) << why;
-  EXPECT_TRUE(TrackerOptions().Check(&why)) << why;
-  EXPECT_TRUE(MapperOptions().Check(&why)) << why;
-  EXPECT_TRUE(DriftOptions().Check(&why)) << why;
-  EXPECT_TRUE(Options().Check(&why)) << why;
+  Status why;
+  EXPECT_TRUE((why = InitializerOptions().Check())) << why.message();
+  EXPECT_TRUE((why = TrackerOptions().Check())) << why.message();
+  EXPECT_TRUE((why = MapperOptions().Check())) << why.message();
+  EXPECT_TRUE((why = DriftOptions().Check())) << why.message();
+  EXPECT_TRUE((why = Options().Check())) << why.message();
 }
 
 TEST(Options, InitializerRules) {
@@ -53,7 +53,7 @@ TEST(Options, TrackerRules) {
   ExpectRefused<O>([](O* o) { o->keyframe_max_interval_s = kNan; }, "keyframe_max_interval_s");
   TrackerOptions all_points;
   all_points.max_points = 0;  // 0: every associated point
-  EXPECT_TRUE(all_points.Check(nullptr));
+  EXPECT_TRUE(all_points.Check());
 }
 
 TEST(Options, MapperRules) {
@@ -73,7 +73,7 @@ TEST(Options, DriftRules) {
   ExpectRefused<O>([](O* o) { o->min_error = 0.0; }, "min_error");
   DriftOptions disabled;
   disabled.enabled = false;
-  EXPECT_TRUE(disabled.Check(nullptr));
+  EXPECT_TRUE(disabled.Check());
 }
 
 TEST(Options, SystemRules) {
@@ -95,11 +95,11 @@ TEST(Options, SystemRules) {
 TEST(Options, FeatureBudgetMustFeedTheInitialiser) {
   Options options;
   options.feature_budget = options.initializer.min_points - 1;
-  std::string why;
-  EXPECT_FALSE(options.Check(&why));
-  EXPECT_NE(why.find("initializer.min_points"), std::string::npos) << why;
+  Status why;
+  EXPECT_FALSE((why = options.Check()));
+  EXPECT_NE(why.message().find("initializer.min_points"), std::string::npos) << why.message();
   options.feature_budget = 0;  // 0: every feature
-  EXPECT_TRUE(options.Check(&why)) << why;
+  EXPECT_TRUE((why = options.Check())) << why.message();
 }
 
 TEST(Options, ChecksEveryStage) {

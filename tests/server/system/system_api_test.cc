@@ -1,44 +1,26 @@
 // The System API on a light synthetic room: bad frames, loss and relocalisation, reset,
-// save / load with localisation-only tracking, the asynchronous mode and shutdown.
-#include <chrono>
+// save / load with localisation-only tracking, and shutdown (system_realtime_test runs the
+// asynchronous mode at the camera rate).
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <limits>
-#include <thread>
 
 #include <gtest/gtest.h>
 
-#include "slam_sim.h"
+#include "point_room_system.h"
 
 namespace m2s::slam {
 namespace {
 
 using testing::ComputeAte;
 using testing::DefaultOptions;
-using testing::MakePointRoom;
-using testing::MakeSequence;
-using testing::SimOptions;
 using testing::SimSequence;
 
-const SimSequence& Sequence() {
-  static const SimSequence seq = [] {
-    static const Scene room = MakePointRoom();
-    SimOptions sim;
-    sim.duration_s = 12.0;
-    sim.budget = 0;
-    sim.occlusion = false;
-    return MakeSequence(sim, &room);
-  }();
-  return seq;
-}
+const SimSequence& Sequence() { return testing::PointRoomSequence(); }
 
 std::unique_ptr<System> MakeSystem(bool deterministic = true) {
-  Options options = DefaultOptions(Sequence().camera);
-  options.deterministic = deterministic;
-  auto system = System::Create(options);
-  EXPECT_TRUE(system.ok()) << system.error();
-  return std::move(*system);
+  return testing::MakePointRoomSystem(deterministic);
 }
 
 TEST(SystemApi, CreateRejectsBadOptions) {
@@ -105,7 +87,8 @@ TEST(SystemApi, BadFramesAreCountedAndRejectedWithoutHarm) {
   }
   EXPECT_EQ(stats.frames_lost, 0);
   const auto ate = ComputeAte(system->Trajectory());
-  EXPECT_LT(ate.rmse, 0.01);
+  std::printf("ATE %.3g m\n", ate.rmse);
+  EXPECT_LT(ate.rmse, 1e-5);  // noise-free: measured 6e-8 m
 }
 
 TEST(SystemApi, LosesTrackWhenFeaturesAreCutAndRelocalises) {
@@ -130,7 +113,9 @@ TEST(SystemApi, LosesTrackWhenFeaturesAreCutAndRelocalises) {
   const SystemStats stats = system->Stats();
   EXPECT_EQ(stats.relocalisations, 1);
   EXPECT_EQ(stats.frames_lost, static_cast<int64_t>(cut_end - cut_begin));
-  EXPECT_LT(ComputeAte(system->Trajectory()).rmse, 0.01);
+  const double ate = ComputeAte(system->Trajectory()).rmse;
+  std::printf("ATE %.3g m\n", ate);
+  EXPECT_LT(ate, 1e-5);  // noise-free: measured 6e-8 m
 }
 
 TEST(SystemApi, ResetForgetsTheMapAndInitialisesAgain) {
@@ -161,7 +146,8 @@ TEST(SystemApi, SavedMapIsLoadedForLocalisationOnly) {
     auto system = MakeSystem();
     for (size_t i = 0; i < frames.size(); ++i) system->Track(frames[i]);
     const auto ate = ComputeAte(system->Trajectory());
-    ASSERT_LT(ate.rmse, 0.01);
+    std::printf("ATE %.3g m\n", ate.rmse);
+    ASSERT_LT(ate.rmse, 1e-5);  // noise-free: measured 8e-8 m
     truth_from_map = ate.truth_from_estimate;
     ASSERT_TRUE(system->SaveMap(path).ok());
   }
@@ -187,45 +173,12 @@ TEST(SystemApi, SavedMapIsLoadedForLocalisationOnly) {
   }
   EXPECT_EQ(relocalised, 1);
   EXPECT_GT(ok, 50);
-  EXPECT_LT(max_error, 0.02);  // in the saved map's frame: the same world as the first run
+  std::printf("localisation max error %.3g m\n", max_error);
+  // In the saved map's frame (the same world as the first run); measured 1.7e-7 m.
+  EXPECT_LT(max_error, 1e-5);
   EXPECT_EQ(system->Stats().keyframes, loaded.keyframes);  // the map never changes
   EXPECT_TRUE(system->TakeMapDelta().empty());
   std::remove(path.c_str());
-}
-
-TEST(SystemApi, AsynchronousModeInRealTimeWithMappingThread) {
-  auto system = MakeSystem(/*deterministic=*/false);
-  const auto& frames = Sequence().frames;
-  // Frames arrive at the camera rate (the producer is paced like a camera, results are read
-  // by this thread in between).
-  const size_t n = std::min<size_t>(frames.size(), 240);
-  const auto start = std::chrono::steady_clock::now();
-  const double t0 = frames[0].timestamp;
-  std::vector<TrackResult> results;
-  for (size_t i = 0; i < n; ++i) {
-    std::this_thread::sleep_until(start + std::chrono::duration<double>(frames[i].timestamp - t0));
-    system->Submit(frames[i]);
-    TrackResult r;
-    while (system->WaitForResult(&r, 0.0)) results.push_back(r);
-  }
-  TrackResult r;
-  while (results.size() + system->Stats().frames_dropped_queue < n &&
-         system->WaitForResult(&r, 5.0)) {
-    results.push_back(r);
-  }
-  const SystemStats stats = system->Stats();
-  EXPECT_EQ(results.size() + stats.frames_dropped_queue, n);
-  int lost = 0;
-  for (size_t i = 0; i < results.size(); ++i) {
-    lost += results[i].state == TrackingState::kLost ? 1 : 0;
-    if (i > 0) EXPECT_GT(results[i].seq, results[i - 1].seq);  // in order
-  }
-  EXPECT_EQ(lost, 0);
-  EXPECT_LT(ComputeAte(system->Trajectory()).rmse, 0.02);
-  const MapDelta delta = system->TakeMapDelta();
-  EXPECT_GT(delta.point_ids.size(), 100u);
-  system->Shutdown();
-  EXPECT_FALSE(system->WaitForResult(&r, 0.01));
 }
 
 TEST(SystemApi, ShutdownWithFramesStillQueuedIsCleanAndIdempotent) {
@@ -242,7 +195,10 @@ TEST(SystemApi, ShutdownWithFramesStillQueuedIsCleanAndIdempotent) {
   const SystemStats stats = system->Stats();
   EXPECT_EQ(stats.frames_submitted, static_cast<int64_t>(frames.size()));
   EXPECT_GT(stats.frames_dropped_queue, 0);
-  EXPECT_LE(stats.frames_tracked + stats.frames_dropped_queue, stats.frames_submitted + 2);
+  // Every frame is taken or dropped at most once; the ones still queued at Shutdown are neither.
+  EXPECT_GT(stats.frames_processed, 0);
+  EXPECT_LE(stats.frames_processed + stats.frames_dropped_queue, stats.frames_submitted);
+  EXPECT_LE(stats.frames_tracked + stats.frames_lost, stats.frames_processed);
   system->Submit(frames[0]);  // ignored after shutdown
   EXPECT_EQ(system->Stats().frames_submitted, static_cast<int64_t>(frames.size()));
   EXPECT_EQ(system->Track(frames[1]).state, TrackingState::kRejected);

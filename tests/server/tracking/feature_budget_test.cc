@@ -21,39 +21,47 @@ SortedFeatures MakeFeatures(std::vector<VertexId> ids) {
   return f;
 }
 
-// The reference: sort every id by rank, keep the first `budget`.
-std::set<VertexId> NaiveSelection(const std::vector<VertexId>& ids, size_t budget) {
-  std::vector<VertexId> by_rank = ids;
-  std::sort(by_rank.begin(), by_rank.end(),
-            [](VertexId a, VertexId b) { return FeatureRank(a) < FeatureRank(b); });
-  by_rank.resize(std::min(budget, by_rank.size()));
-  return {by_rank.begin(), by_rank.end()};
+const FeatureGrid kGrid = FeatureGrid::ForImage(640, 480);
+
+// The client-side selection (KeepBalanced on wire features) of the same features: the
+// reference the server must agree with.
+std::set<VertexId> ClientSelection(const SortedFeatures& f, int budget) {
+  std::vector<VertexFeature> wire;
+  for (size_t i = 0; i < f.size(); ++i) wire.push_back({f.ids[i], f.uvs[i].cast<float>()});
+  KeepBalanced(budget, kGrid, &wire);
+  std::set<VertexId> ids;
+  for (const VertexFeature& w : wire) ids.insert(w.id);
+  return ids;
 }
 
-TEST(FeatureBudget, KeepsTheLowestRankedIdsInIdOrderWithTheirUvs) {
+TEST(FeatureBudget, KeepsTheBalancedSelectionInIdOrderWithTheirUvs) {
   std::vector<VertexId> ids(5000);
   std::iota(ids.begin(), ids.end(), 100);
+  for (VertexId& id : ids) id = id * 97 % 307200;  // spread over the whole image
   SortedFeatures f = MakeFeatures(ids);
-  EXPECT_EQ(ApplyFeatureBudget(700, &f), 4300u);
+  const std::set<VertexId> expected = ClientSelection(f, 700);
+  EXPECT_EQ(ApplyFeatureBudget(700, kGrid, &f), 4300u);
   ASSERT_EQ(f.size(), 700u);
   ASSERT_EQ(f.uvs.size(), 700u);
   EXPECT_TRUE(std::is_sorted(f.ids.begin(), f.ids.end()));
-  EXPECT_EQ(std::set<VertexId>(f.ids.begin(), f.ids.end()), NaiveSelection(ids, 700));
+  EXPECT_EQ(std::set<VertexId>(f.ids.begin(), f.ids.end()), expected);
   for (size_t i = 0; i < f.size(); ++i) {
     EXPECT_EQ(f.uvs[i], Eigen::Vector2d(f.ids[i] % 640, f.ids[i] / 640 % 480));
   }
 }
 
 TEST(FeatureBudget, ClientSideSelectionIsTheSameSubset) {
-  // A client that keeps the lowest-ranked features before sending (KeepLowestRanked on the
-  // unsorted wire features) sends exactly what the server's budget would keep.
+  // A client that keeps the balanced selection before sending (KeepBalanced on the unsorted
+  // wire features) sends exactly what the server's budget would keep.
   std::vector<VertexFeature> wire;
-  for (VertexId id = 9000; id > 1000; id -= 3) wire.push_back({id, {1.f, 2.f}});
+  for (VertexId id = 90000; id > 1000; id -= 3) {
+    wire.push_back({id, {static_cast<float>(id % 640), static_cast<float>(id / 640 % 480)}});
+  }
   std::vector<VertexId> ids;
   for (const VertexFeature& f : wire) ids.push_back(f.id);
   SortedFeatures server = MakeFeatures(ids);
-  ApplyFeatureBudget(500, &server);
-  EXPECT_EQ(KeepLowestRanked(500, &wire), ids.size() - 500);
+  ApplyFeatureBudget(500, kGrid, &server);
+  EXPECT_EQ(KeepBalanced(500, kGrid, &wire), ids.size() - 500);
   std::vector<VertexId> sent;
   for (const VertexFeature& f : wire) sent.push_back(f.id);
   EXPECT_TRUE(std::is_sorted(sent.rbegin(), sent.rend()));  // the client's order is kept
@@ -63,8 +71,8 @@ TEST(FeatureBudget, ClientSideSelectionIsTheSameSubset) {
 
 TEST(FeatureBudget, UnderBudgetOrZeroKeepsEverything) {
   SortedFeatures f = MakeFeatures({5, 9, 12});
-  EXPECT_EQ(ApplyFeatureBudget(3, &f), 0u);
-  EXPECT_EQ(ApplyFeatureBudget(0, &f), 0u);
+  EXPECT_EQ(ApplyFeatureBudget(3, kGrid, &f), 0u);
+  EXPECT_EQ(ApplyFeatureBudget(0, kGrid, &f), 0u);
   EXPECT_EQ(f.ids, (std::vector<VertexId>{5, 9, 12}));
 }
 
@@ -75,8 +83,8 @@ TEST(FeatureBudget, OverlappingViewsKeepTheSameIds) {
   std::iota(a.begin(), a.end(), 0);
   for (VertexId id = 2000; id < 22000; ++id) b.push_back(id);  // 90 % shared
   SortedFeatures fa = MakeFeatures(a), fb = MakeFeatures(b);
-  ApplyFeatureBudget(1000, &fa);
-  ApplyFeatureBudget(1000, &fb);
+  ApplyFeatureBudget(1000, kGrid, &fa);
+  ApplyFeatureBudget(1000, kGrid, &fb);
   std::vector<VertexId> shared;
   std::set_intersection(fa.ids.begin(), fa.ids.end(), fb.ids.begin(), fb.ids.end(),
                         std::back_inserter(shared));
@@ -90,7 +98,7 @@ TEST(FeatureBudget, SpreadsOverTheIdRange) {
   std::vector<VertexId> ids(50000);
   std::iota(ids.begin(), ids.end(), 0);
   SortedFeatures f = MakeFeatures(ids);
-  ApplyFeatureBudget(1000, &f);
+  ApplyFeatureBudget(1000, kGrid, &f);
   std::vector<int> per_decile(10, 0);
   for (const VertexId id : f.ids) ++per_decile[id / 5000];
   for (const int n : per_decile) {

@@ -92,10 +92,10 @@ TEST(Initializer, PlanarSceneUsesTheHomography) {
   const Options options = TestOptions();
   const Pose3 motion = Motion(0.5, -3.0);
   const Views views = MakeViews(options.camera, motion, /*planar=*/true);
-  std::string why;
+  TwoViewRefusal refusal;
   const auto two_view = ReconstructTwoView(options.measurement(), options.initializer, views.view0,
-                                           views.view1, &why);
-  ASSERT_TRUE(two_view.has_value()) << why;
+                                           views.view1, &refusal);
+  ASSERT_TRUE(two_view.has_value()) << refusal.message;
   EXPECT_TRUE(two_view->used_homography);
   Initializer init(options.measurement(), options.initializer, 1);
   init.Process(0, 0.0, views.view0);
@@ -118,11 +118,11 @@ TEST(Initializer, RefusesPureRotationAndTinyParallax) {
   }
   // A 2 mm translation at 3-7 m depth: far below one degree of parallax.
   const Views tiny = MakeViews(options.camera, Motion(0.002, 1.0), false);
-  std::string why;
-  EXPECT_FALSE(
-      ReconstructTwoView(options.measurement(), options.initializer, tiny.view0, tiny.view1, &why)
-          .has_value());
-  EXPECT_FALSE(why.empty());
+  TwoViewRefusal refusal;
+  EXPECT_FALSE(ReconstructTwoView(options.measurement(), options.initializer, tiny.view0,
+                                  tiny.view1, &refusal)
+                   .has_value());
+  EXPECT_EQ(refusal.kind, TwoViewRefusal::Kind::kNoModel) << refusal.message;
 }
 
 TEST(Initializer, ToleratesWrongIds) {
@@ -147,8 +147,8 @@ TEST(Initializer, ToleratesWrongIds) {
 TEST(Initializer, AnOpenCvExceptionIsARefusedAttempt) {
   Options options = TestOptions();
   options.initializer.min_points = 3;
-  std::string why;
-  ASSERT_FALSE(options.initializer.Check(&why));
+  ASSERT_FALSE(options.initializer.Check());
+  TwoViewRefusal refusal;
   SortedFeatures view0, view1;
   for (VertexId id = 0; id < 3; ++id) {
     view0.ids.push_back(id);
@@ -158,9 +158,10 @@ TEST(Initializer, AnOpenCvExceptionIsARefusedAttempt) {
   }
   std::optional<TwoViewReconstruction> two_view;
   EXPECT_NO_THROW(two_view = ReconstructTwoView(options.measurement(), options.initializer, view0,
-                                                view1, &why));
+                                                view1, &refusal));
   EXPECT_FALSE(two_view.has_value());
-  EXPECT_EQ(why.rfind("OpenCV error: ", 0), 0u) << why;
+  EXPECT_EQ(refusal.kind, TwoViewRefusal::Kind::kSolverError) << refusal.message;
+  EXPECT_EQ(refusal.message.rfind("OpenCV error: ", 0), 0u) << refusal.message;
 
   Initializer init(options.measurement(), options.initializer, 1);
   std::optional<InitialMap> map;

@@ -262,8 +262,8 @@ TEST(Tracker, FramesRecordAgainstAKeyframeStillQueuedForMapping) {
 TEST(Tracker, AnOpenCvExceptionInRelocalisationIsALostFrame) {
   Options options = TestOptions();
   options.tracker.min_inliers = 3;
-  std::string why;
-  ASSERT_FALSE(options.tracker.Check(&why));
+  Status why;
+  ASSERT_FALSE((why = options.tracker.Check()));
   std::mt19937 rng(3);
   Scene scene;
   AddPoints(options.camera, 3, 0, /*old=*/false, 100, 500, 100, 400, &rng, &scene);

@@ -169,7 +169,7 @@ Expected<ReplayResult> Replayer::Finish(ReplayResult result) {
   auto loaded_scene = LoadSceneOrDefault(options_.mesh_path);
   if (!loaded_scene) return loaded_scene.status();
   Scene scene = std::move(*loaded_scene);
-  headless::RunInfo info;
+  reporting::RunInfo info;
   info.projector = "replay";
   info.transport = "replay";
   info.fast = true;
@@ -182,8 +182,8 @@ Expected<ReplayResult> Replayer::Finish(ReplayResult result) {
                         1e-6;
     if (span > 0) info.fps = static_cast<double>(best->records.size() - 1) / span;
   }
-  auto metrics = headless::WriteRunOutputs(options_.out_dir, best->records,
-                                           best->replica.Snapshot(), &scene, best->camera, info);
+  auto metrics = reporting::WriteRunOutputs(options_.out_dir, best->records,
+                                            best->replica.Snapshot(), &scene, best->camera, info);
   if (!metrics) return metrics.status();
   result.metrics = std::move(*metrics);
   return result;

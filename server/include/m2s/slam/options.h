@@ -10,8 +10,7 @@
 //   slam::Options options;
 //   options.camera = camera;
 //   options.tracker.min_inliers = 40;
-//   std::string why;
-//   if (!options.Check(&why)) { /* report why */ }
+//   if (Status valid = options.Check(); !valid) { /* report valid.message() */ }
 #pragma once
 
 #include <string>
@@ -39,7 +38,7 @@ struct InitializerOptions {
   double min_parallax_deg = 1.5;
   int max_reference_age = 120;
 
-  bool Check(std::string* why) const;
+  Status Check() const;
 };
 
 // Frame-to-map tracking and the keyframe decision (tracking/tracker.h).
@@ -58,7 +57,7 @@ struct TrackerOptions {
   // or after this long (seconds).
   double keyframe_max_interval_s = 1.0;
 
-  bool Check(std::string* why) const;
+  Status Check() const;
 };
 
 // Local mapping: triangulation, bundle adjustment and culling (mapping/local_mapper.h).
@@ -78,7 +77,7 @@ struct MapperOptions {
   // Bound on the map (oldest keyframes are culled beyond it).
   int max_keyframes = 2000;
 
-  bool Check(std::string* why) const;
+  Status Check() const;
 };
 
 // Drift correction (mapping/drift_corrector.h): triggered when a keyframe re-observes at least
@@ -90,7 +89,7 @@ struct DriftOptions {
   int min_keyframe_gap = 15;
   double min_error = 0.01;
 
-  bool Check(std::string* why) const;
+  Status Check() const;
 };
 
 struct Options {
@@ -131,7 +130,7 @@ struct Options {
   MeasurementModel measurement() const {
     return {camera, pixel_sigma, min_triangulation_parallax_deg};
   }
-  bool Check(std::string* why) const;
+  Status Check() const;
 };
 
 }  // namespace m2s::slam

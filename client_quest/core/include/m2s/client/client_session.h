@@ -27,6 +27,7 @@
 
 #include <condition_variable>
 #include <cstdint>
+#include <functional>
 #include <mutex>
 #include <optional>
 #include <random>
@@ -54,6 +55,9 @@ struct ClientSessionOptions {
   // With frames outstanding and no pose from the owning server for this long, the session is
   // given up and a new one started at the next Send().
   double unanswered_timeout_s = 3.0;
+  // Seconds on the clock of the timeouts above (empty: std::chrono::steady_clock); tests
+  // inject one to step time instead of sleeping. Latencies always use the steady clock.
+  std::function<double()> clock_s;
 };
 
 // What happened to one sent frame.
@@ -131,6 +135,8 @@ class ClientSession {
 
   Transport* const transport_;
   const ClientSessionOptions options_;
+  // Now on options_.clock_s, or the steady clock.
+  double Now() const;
   MapReplica replica_;
 
   mutable std::mutex mutex_;  // guards the members below

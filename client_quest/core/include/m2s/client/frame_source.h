@@ -1,5 +1,5 @@
 // FrameSource: scene + camera pose -> projector -> optional feature noise -> optional send
-// budget (the lowest-ranked ids, m2s/common/feature_rank.h) -> a wire frame.
+// budget (the balanced selection, m2s/common/feature_rank.h) -> a wire frame.
 //
 // The projector (CPU or GPU, common/projector.h) is borrowed and used from the calling thread
 // only. Deterministic: the noise is keyed by (seed, frame index).
@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "m2s/common/feature_noise.h"
+#include "m2s/common/feature_rank.h"
 #include "m2s/common/projector.h"
 #include "m2s/common/wire_format.h"
 
@@ -21,8 +22,9 @@ namespace m2s::client {
 
 class FrameSource {
  public:
-  // send_budget: at most this many features per frame, the lowest-ranked ids (0: all). With
-  // the server's slam::Options::feature_budget or more, the server sees what it would keep.
+  // send_budget: at most this many features per frame, the balanced selection (0: all). With
+  // the server's slam::Options::feature_budget or more, the server keeps what it would keep
+  // from the whole view (the selection is nested).
   FrameSource(Projector* projector, const Camera& camera, FeatureNoiseOptions noise,
               uint32_t num_scene_vertices, int send_budget = 0);
 
@@ -40,6 +42,7 @@ class FrameSource {
   const FeatureNoiseOptions noise_;
   const uint32_t num_scene_vertices_;
   const int send_budget_;
+  const FeatureGrid send_grid_;
   std::vector<ProjectedVertex> scratch_;
   double last_projection_ms_ = 0.0;
 };

@@ -2,7 +2,7 @@
 // (projector -> noise -> codec), sent over a transport (on-device or LCM) in real time (frames
 // the client cannot produce in time are skipped; the server's latest-wins queue skips the
 // frames SLAM cannot take) or, with `fast`, one frame at a time waiting for each pose
-// (deterministic). The outputs are written by WriteRunOutputs. A run that no server ever
+// (deterministic). The outputs are written by reporting::WriteRunOutputs. A run that no server ever
 // answered (none listening, the server full, or every answer refused) is an error.
 //
 //   HeadlessOptions options;            // default scene, default trajectory, on-device
@@ -17,7 +17,7 @@
 #include "m2s/common/bus_auth.h"
 #include "m2s/common/feature_noise.h"
 #include "m2s/common/projector.h"
-#include "m2s/headless/run_outputs.h"
+#include "m2s/reporting/run_outputs.h"
 #include "m2s/server_app/session_manager.h"
 
 namespace m2s::headless {
@@ -56,7 +56,7 @@ struct HeadlessOptions {
 
 // One line the caller should print (e.g. the GPU -> CPU fallback); empty when none.
 struct HeadlessResult {
-  RunMetrics metrics;
+  reporting::RunMetrics metrics;
   std::string notice;
   client::ClientCounters counters;
 };

@@ -61,7 +61,7 @@ struct MapRendererOptions {
   double frustum_depth_m = 0.1;  // distance from the apex to the drawn image rectangle (> 0)
   bool clear = true;             // clear colour and depth before drawing
 
-  bool Check(std::string* why) const;
+  Status Check() const;
 };
 
 class MapRenderer {

@@ -69,7 +69,7 @@ struct XrClientOptions {
   // Called once per loop iteration on the render thread (the Android looper); returning false
   // asks the runtime to end the session. Empty on desktop.
   std::function<bool()> platform_events;
-  bool Check(std::string* why) const;
+  Status Check() const;
 };
 
 struct TimingStats {

@@ -52,7 +52,7 @@ struct AssociationOptions {
   double estimate_offset_s = 0.0;  // added to the estimate's timestamps (evo --t_offset)
   AssociationMethod method = AssociationMethod::kEvo;
 
-  bool Check(std::string* why) const;
+  Status Check() const;
 };
 
 struct MatchedPair {
@@ -75,7 +75,7 @@ struct EvaluationOptions {
   Alignment alignment = Alignment::kSim3;
   AssociationOptions association;
 
-  bool Check(std::string* why) const;
+  Status Check() const;
 };
 
 struct TrajectoryEvaluation {

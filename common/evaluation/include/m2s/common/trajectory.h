@@ -124,7 +124,7 @@ struct HeadMotionOptions {
   double bob_amplitude_m = 0.015;  // vertical head bob at full walking speed
   double step_frequency_hz = 1.8;
 
-  bool Check(std::string* why) const;
+  Status Check() const;
 };
 Expected<Trajectory> GenerateHeadMotion(const HeadMotionOptions& options);
 

@@ -1,5 +1,6 @@
-// Research degradations of projected features: pixel noise, quantisation, dropout, wrong ids
-// and a feature budget spread evenly over an image grid.
+// Research degradations of projected features: pixel noise, quantisation, dropout and wrong
+// ids. (The feature budget is not a degradation: it is the balanced selection of
+// m2s/common/feature_rank.h, applied by the client before sending and by the server.)
 //
 // Determinism: every random decision is drawn from a counter-based generator keyed by
 // (seed, frame_index, vertex id, stage), so the result depends only on the options, the
@@ -16,10 +17,7 @@
 //     positions (integers floor(u), floor(v)) plus 0.5, which keeps the quantisation unbiased.
 //  4. Features whose (u, v) left the image [0, width) x [0, height) are removed (noise near
 //     the border, or a last partial cell when q does not divide the image size).
-//  5. Budget (budget > 0): when more features remain, exactly `budget` are kept, spread over a
-//     grid_cols x grid_rows grid of equal image cells: round robin over the cells (in a random
-//     cell order drawn per frame), one random feature of each non-empty cell per round.
-//  6. Wrong ids: each remaining feature, with probability wrong_id_fraction, gets a random id
+//  5. Wrong ids: each remaining feature, with probability wrong_id_fraction, gets a random id
 //     in [0, num_scene_vertices) that is not the id of any feature in the frame (ids stay
 //     unique); when no such id is left the feature is removed.
 // Depth is passed through unchanged.
@@ -43,15 +41,12 @@ struct FeatureNoiseOptions {
   double quantization_px = 0.0;      // grid step in pixels; 0: off, 1: pixel centres
   double dropout_probability = 0.0;  // in [0, 1]
   double wrong_id_fraction = 0.0;    // in [0, 1]
-  int budget = 0;                    // most features kept per frame; 0: unlimited
-  int grid_cols = 8;                 // budget grid, cells across the image
-  int grid_rows = 6;                 // budget grid, cells down the image
   uint64_t seed = 0;
 
   // True when any option changes the features.
   bool Enabled() const;
   // False (with the reason) when an option is out of range or not finite.
-  bool Check(std::string* why) const;
+  Status Check() const;
 };
 
 // Applies the stages above to `features` in place. Options must pass Check() (checked).

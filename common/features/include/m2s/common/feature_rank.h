@@ -1,4 +1,5 @@
-// A fixed ranking of vertex ids, for bounded, id-stable subsets of a frame's features.
+// A fixed ranking of vertex ids, for bounded, id-stable subsets of a frame's features, and the
+// balanced selection built on it.
 //
 // A 640x480 view of a dense mesh sees ~10^4 vertices; SLAM needs ~10^3 (exact association, no
 // outliers to outvote). Each vertex id gets a fixed pseudo-random rank (a bijective 64-bit mix
@@ -10,6 +11,21 @@
 //
 //   const uint64_t threshold = FeatureRankThreshold(ids, 2000);
 //   keep feature i  <=>  FeatureRank(ids[i]) <= threshold
+//
+// Balanced selection (SelectBalanced, KeepBalanced) removes the rank selection's one weakness:
+// it keeps features in proportion to vertex density, so a dense scanned object takes the whole
+// budget and sparse walls get almost none. The image is cut into a grid (FeatureGrid); within
+// each cell the features are ordered by rank, and a feature's *level* is its place in that
+// order (1 for the lowest-ranked feature of its cell). Features are kept by level, then by rank:
+// first the lowest-ranked feature of every non-empty cell, then the second of every cell that
+// has one, and so on, until the budget is spent. Cells with few features keep all of them and
+// leave their share to the others. The selection stays id-stable (a feature's level changes
+// only when features of lower rank enter or leave its cell), independent of feature order,
+// and nested: selecting N features from the selection of M >= N gives the selection of N, so
+// a client that sends a larger budget and a server that keeps a smaller one still agree.
+//
+//   const FeatureGrid grid = FeatureGrid::ForImage(camera.width, camera.height);
+//   KeepBalanced(2000, grid, &features);   // at most 2000, spread over the grid
 #pragma once
 
 #include <cstdint>
@@ -31,5 +47,30 @@ uint64_t FeatureRankThreshold(std::span<const VertexId> ids, int budget);
 // Keeps the `budget` lowest-ranked features, in their order (all when budget <= 0); the ids
 // must be distinct. Returns the number removed.
 size_t KeepLowestRanked(int budget, std::vector<VertexFeature>* features);
+
+// Equal cells over an image: kGridCols across, rows in proportion to the aspect ratio (16 x 12
+// at 4:3). Client and server derive it from the session's camera, so they agree.
+struct FeatureGrid {
+  static constexpr int kGridCols = 16;
+  int cols = 1;
+  int rows = 1;
+  double cell_width = 1.0;
+  double cell_height = 1.0;
+
+  static FeatureGrid ForImage(int width, int height);
+  int num_cells() const { return cols * rows; }
+  // The cell of (u, v); points outside the image (within a validation margin) go to the
+  // nearest cell; NaN goes to cell 0.
+  int CellOf(double u, double v) const;
+};
+
+// Balanced selection (see the top of this file): the indices of the kept features, ascending.
+// `cells[i]` is feature i's cell (FeatureGrid::CellOf); ids must be distinct. Every index is
+// kept when budget <= 0 or there are not more than `budget` features.
+std::vector<uint32_t> SelectBalanced(std::span<const VertexId> ids, std::span<const int> cells,
+                                     int budget);
+
+// Keeps the features SelectBalanced chooses, in their order. Returns the number removed.
+size_t KeepBalanced(int budget, const FeatureGrid& grid, std::vector<VertexFeature>* features);
 
 }  // namespace m2s

@@ -15,6 +15,8 @@
 
 #include <Eigen/Core>
 
+#include "m2s/common/status.h"
+
 namespace m2s {
 
 struct Camera {
@@ -33,7 +35,7 @@ struct Camera {
                                   double far = 50.0);
 
   // False (with the reason) when any field is out of range or not finite.
-  bool Check(std::string* why) const;
+  Status Check() const;
 
   Eigen::Vector2d Project(const Eigen::Vector3d& p_camera) const {
     return {fx * p_camera.x() / p_camera.z() + cx, fy * p_camera.y() / p_camera.z() + cy};

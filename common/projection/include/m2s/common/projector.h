@@ -35,7 +35,7 @@ struct ProjectorOptions {
   // Worker threads for the CPU projector (0: hardware concurrency).
   int num_threads = 0;
 
-  bool Check(std::string* why) const;
+  Status Check() const;
 };
 
 class Projector {

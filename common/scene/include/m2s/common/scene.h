@@ -32,7 +32,7 @@ struct SceneLoadOptions {
   Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();
   Eigen::Vector3d translation = Eigen::Vector3d::Zero();
 
-  bool Check(std::string* why) const;
+  Status Check() const;
 };
 
 // Loads any format assimp reads (OBJ, PLY, glTF, FBX, 3DS, IFC...). Only aiProcess_Triangulate

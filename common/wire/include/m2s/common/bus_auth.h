@@ -84,7 +84,7 @@ struct BusOpenerOptions {
   // Senders remembered at once. Senders idle for longer than max_age_s are forgotten first
   // (their old messages are stale anyway); when every entry is fresh, new senders are refused.
   int max_senders = 4096;
-  bool Check(std::string* why) const;
+  Status Check() const;
 };
 
 // What a process on the bus is configured with (server and clients alike).
@@ -113,8 +113,8 @@ class BusOpener {
   explicit BusOpener(std::optional<BusKey> key, BusOpenerOptions options = {});
   // Failure reasons: kNotAuthenticated (no envelope, bad tag, another key), kReplayed (counter
   // seen or behind the window), kStale (clock too far off), kTooManySenders.
-  DecodeResult<OpenedMessage> Open(std::string_view channel, const uint8_t* data, size_t size,
-                                   int64_t now_wall_us);
+  Expected<OpenedMessage> Open(std::string_view channel, const uint8_t* data, size_t size,
+                               int64_t now_wall_us);
   bool keyed() const { return key_.has_value(); }
 
  private:

@@ -13,7 +13,7 @@
 // its name) and a one-line message.
 //
 //   std::vector<uint8_t> bytes = EncodeFeatureFrame(frame);
-//   DecodeResult<FeatureFrame> decoded = DecodeFeatureFrame(bytes.data(), bytes.size(), limits);
+//   Expected<FeatureFrame> decoded = DecodeFeatureFrame(bytes.data(), bytes.size(), limits);
 //   if (!decoded) counters[decoded.reason()]++;
 //
 // Thread-safety: free functions on values, safe from any thread.
@@ -25,7 +25,6 @@
 #include <optional>
 #include <string>
 #include <utility>
-#include <variant>
 #include <vector>
 
 // The generated headers compare a function pointer with void* (-Wpedantic).
@@ -41,6 +40,7 @@
 #pragma GCC diagnostic pop
 
 #include "m2s/common/camera.h"
+#include "m2s/common/drop_reason.h"
 #include "m2s/common/geometry.h"
 #include "m2s/common/status.h"
 #include "m2s/common/types.h"
@@ -55,67 +55,11 @@ inline constexpr const char* kSessionChannel = "M2S_SESSION";  // both direction
 inline constexpr const char* kStatsChannel = "M2S_STATS";      // server -> anyone
 inline constexpr const char* kDefaultLcmUrl = "udpm://239.255.76.67:7667?ttl=0";
 
-// Why a message was not used. The names (ToString) are the server's drop-counter keys.
-enum class DropReason : int {
-  kBadBytes = 0,       // not decodable: too short, inconsistent counts, trailing bytes
-  kWrongFingerprint,   // LCM type hash of another message type
-  kBadVersion,         // version field other than the one we speak
-  kBadCamera,          // camera out of range (size, focal length, depth range)
-  kNonFinite,          // NaN / infinity in a pose or the camera
-  kBadUvShift,         // uv_shift not the one UvShiftFor() gives for the camera
-  kNegativeId,         // vertex id < 0
-  kOutOfImage,         // (u, v) outside [0, width) x [0, height)
-  kDuplicateId,        // the same vertex id twice in a frame
-  kTooManyFeatures,    // more features than the configured maximum
-  kSeqNotIncreasing,   // sequence number going back or repeating
-  kUnknownSession,     // a request for a session the server does not hold
-  kEndedSession,       // a frame for a session that ended (bye, timeout)
-  kMaxSessions,        // a new session while the server is full
-  kCameraChanged,      // a frame whose camera differs from its session's camera
-  kBadSessionMessage,  // unknown session_control_t type or invalid field
-  kNotAuthenticated,   // keyed bus: no envelope, a tag that does not verify, another key
-  kReplayed,           // keyed bus: an authentic message seen before
-  kStale,              // keyed bus: sender clock further off than the allowed message age
-  kTooManySenders,     // keyed bus: the table of senders is full of fresh entries
-  kSeqJump,            // a frame whose sequence number jumps further than allowed
-  kSpoofedSession,     // a message for a session from another sender than its owner
-  kCount,
-};
-inline constexpr int kNumDropReasons = static_cast<int>(DropReason::kCount);
-const char* ToString(DropReason reason);
-
-// An error with its reason code.
-struct WireError {
-  DropReason reason = DropReason::kBadBytes;
-  std::string message;
-};
-
-// Expected<T> with a reason code on failure.
-template <typename T>
-class DecodeResult {
- public:
-  DecodeResult(T value) : data_(std::move(value)) {}          // NOLINT: implicit by design
-  DecodeResult(WireError error) : data_(std::move(error)) {}  // NOLINT
-  static DecodeResult Error(DropReason reason, std::string message) {
-    return DecodeResult(WireError{reason, std::move(message)});
-  }
-
-  bool ok() const { return std::holds_alternative<T>(data_); }
-  explicit operator bool() const { return ok(); }
-  T& value() & { return std::get<T>(data_); }
-  const T& value() const& { return std::get<T>(data_); }
-  T&& value() && { return std::get<T>(std::move(data_)); }
-  T* operator->() { return &value(); }
-  const T* operator->() const { return &value(); }
-  T& operator*() & { return value(); }
-  const T& operator*() const& { return value(); }
-  DropReason reason() const { return std::get<WireError>(data_).reason; }
-  const std::string& error() const { return std::get<WireError>(data_).message; }
-  Status status() const { return ok() ? Status::Ok() : Status::Error(error()); }
-
- private:
-  std::variant<T, WireError> data_;
-};
+// Every decoder failure carries its DropReason (m2s/common/drop_reason.h, shared with the
+// frame validator); the server's drop counters are keyed by its name.
+using m2s::DropReason;
+using m2s::kNumDropReasons;
+using m2s::ToString;
 
 // A feature frame as the project handles it (the decoded feature_frame_t).
 struct FeatureFrame {
@@ -144,12 +88,12 @@ float DequantizeCoordinate(uint16_t code, int uv_shift);
 // Value <-> message conversions.
 pose_t ToMessage(const Pose3& pose);
 camera_t ToMessage(const Camera& camera);
-DecodeResult<Pose3> FromMessage(const pose_t& message);     // kNonFinite / kBadBytes (|q| ~ 0)
-DecodeResult<Camera> FromMessage(const camera_t& message);  // kNonFinite / kBadCamera
+Expected<Pose3> FromMessage(const pose_t& message);     // kNonFinite / kBadBytes (|q| ~ 0)
+Expected<Camera> FromMessage(const camera_t& message);  // kNonFinite / kBadCamera
 // The message for a frame (the camera must be valid; features must lie in the image).
 feature_frame_t ToMessage(const FeatureFrame& frame);
 // Validates a decoded message (everything but the byte layout).
-DecodeResult<FeatureFrame> FromMessage(const feature_frame_t& message, const FrameLimits& limits);
+Expected<FeatureFrame> FromMessage(const feature_frame_t& message, const FrameLimits& limits);
 
 // Byte-level encode / decode with validation.
 template <typename Message>
@@ -162,14 +106,13 @@ std::vector<uint8_t> EncodeFeatureFrame(const FeatureFrame& frame);
 // Encoded size of a frame with n features (160 + 8 n bytes).
 size_t FeatureFrameEncodedSize(size_t num_features);
 
-DecodeResult<FeatureFrame> DecodeFeatureFrame(const void* data, size_t size,
-                                              const FrameLimits& limits);
+Expected<FeatureFrame> DecodeFeatureFrame(const void* data, size_t size, const FrameLimits& limits);
 // The other messages: byte layout, fingerprint and version checked; finite poses checked for
 // poses and keyframes; session_control_t's camera is checked only for HELLO.
-DecodeResult<session_control_t> DecodeSessionControl(const void* data, size_t size);
-DecodeResult<pose_estimate_t> DecodePoseEstimate(const void* data, size_t size);
-DecodeResult<map_delta_t> DecodeMapDelta(const void* data, size_t size);
-DecodeResult<server_stats_t> DecodeServerStats(const void* data, size_t size);
+Expected<session_control_t> DecodeSessionControl(const void* data, size_t size);
+Expected<pose_estimate_t> DecodePoseEstimate(const void* data, size_t size);
+Expected<map_delta_t> DecodeMapDelta(const void* data, size_t size);
+Expected<server_stats_t> DecodeServerStats(const void* data, size_t size);
 
 // Microseconds of CLOCK_REALTIME (the *_wall_us fields).
 int64_t WallClockMicros();

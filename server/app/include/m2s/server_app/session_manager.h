@@ -71,7 +71,7 @@ struct ServerOptions {
   // inject a manual one.
   std::function<std::chrono::steady_clock::time_point()> clock;
 
-  bool Check(std::string* why) const;
+  Status Check() const;
 };
 
 struct ServerCounters {

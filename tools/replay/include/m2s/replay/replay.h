@@ -16,7 +16,7 @@
 #include <cstdint>
 #include <string>
 
-#include "m2s/headless/run_outputs.h"
+#include "m2s/reporting/run_outputs.h"
 #include "m2s/server_app/session_manager.h"
 
 namespace m2s::replay {
@@ -30,7 +30,7 @@ struct ReplayOptions {
 };
 
 struct ReplayResult {
-  headless::RunMetrics metrics;
+  reporting::RunMetrics metrics;
   int64_t events = 0;  // log events read
   int64_t frames = 0;  // frame messages fed to the server
   int64_t evaluated_session = 0;

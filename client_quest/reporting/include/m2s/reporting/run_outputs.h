@@ -24,7 +24,7 @@
 #include "m2s/common/scene.h"
 #include "m2s/common/status.h"
 
-namespace m2s::headless {
+namespace m2s::reporting {
 
 struct RunInfo {
   std::string projector = "cpu";
@@ -90,4 +90,4 @@ std::string SummaryLine(const RunMetrics& metrics, const std::string& out_dir);
 std::vector<client::FrameRecord> TrackedFrames(const std::vector<client::FrameRecord>& records,
                                                int64_t session_id);
 
-}  // namespace m2s::headless
+}  // namespace m2s::reporting

@@ -7,7 +7,7 @@
 #include "m2s/render/map_renderer.h"
 #include "m2s/render/offscreen_target.h"
 
-namespace m2s::headless {
+namespace m2s::reporting {
 namespace {
 
 constexpr int kWidth = 1280;
@@ -101,4 +101,4 @@ Status WriteMapPng(const std::string& path, const MapImageInput& input) {
   return RenderWithOpenCv(path, input, view);
 }
 
-}  // namespace m2s::headless
+}  // namespace m2s::reporting

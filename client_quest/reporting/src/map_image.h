@@ -12,7 +12,7 @@
 #include "m2s/common/scene.h"
 #include "m2s/common/status.h"
 
-namespace m2s::headless {
+namespace m2s::reporting {
 
 struct MapImageInput {
   const Scene* scene = nullptr;
@@ -26,4 +26,4 @@ struct MapImageInput {
 Pose3 MapViewpoint(const Scene& scene);
 Status WriteMapPng(const std::string& path, const MapImageInput& input);
 
-}  // namespace m2s::headless
+}  // namespace m2s::reporting

@@ -1,4 +1,4 @@
-#include "m2s/headless/run_outputs.h"
+#include "m2s/reporting/run_outputs.h"
 
 #include <algorithm>
 #include <cmath>
@@ -19,7 +19,7 @@
 #include "m2s/common/trajectory.h"
 #include "map_image.h"
 
-namespace m2s::headless {
+namespace m2s::reporting {
 namespace {
 
 bool Tracked(int8_t state) {
@@ -311,4 +311,4 @@ std::string SummaryLine(const RunMetrics& m, const std::string& out_dir) {
   return line.str();
 }
 
-}  // namespace m2s::headless
+}  // namespace m2s::reporting

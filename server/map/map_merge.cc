@@ -1,0 +1,103 @@
+#include "map/map_merge.h"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "m2s/common/alignment.h"
+#include "m2s/common/check.h"
+#include "m2s/common/numeric.h"
+
+namespace m2s::slam {
+
+Status MapAlignmentOptions::Check() const {
+  if (min_shared_points < 3) return Status::Error("min_shared_points must be at least 3");
+  if (!(trim_factor > 1.0) || !std::isfinite(trim_factor)) {
+    return Status::Error("trim_factor must be finite and > 1");
+  }
+  if (!(min_trim_distance >= 0.0)) return Status::Error("min_trim_distance must be >= 0");
+  if (max_rounds < 1) return Status::Error("max_rounds must be at least 1");
+  if (!(min_inlier_fraction > 0.0 && min_inlier_fraction <= 1.0)) {
+    return Status::Error("min_inlier_fraction must be in (0, 1]");
+  }
+  return Status::Ok();
+}
+
+Expected<MapAlignment> AlignMaps(const MapData& into, const MapData& from,
+                                 const MapAlignmentOptions& options) {
+  if (Status valid = options.Check(); !valid) return valid.Prefixed("map alignment: ");
+  std::vector<Eigen::Vector3d> source, target;  // from, into
+  for (const auto& [id, point] : from.points()) {
+    if (const MapPoint* other = into.point(id)) {
+      source.push_back(point.position);
+      target.push_back(other->position);
+    }
+  }
+  const int shared = static_cast<int>(source.size());
+  if (shared < options.min_shared_points) {
+    return Expected<MapAlignment>::Error("maps share " + std::to_string(shared) +
+                                         " points, fewer than " +
+                                         std::to_string(options.min_shared_points));
+  }
+  std::vector<Eigen::Vector3d> src = source, dst = target;
+  MapAlignment out;
+  out.shared_points = shared;
+  for (int round = 0; round < options.max_rounds; ++round) {
+    const std::optional<Sim3> fit = AlignPoints(src, dst, /*with_scale=*/true);
+    if (!fit) return Expected<MapAlignment>::Error("shared points are degenerate (collinear)");
+    out.into_from_from = *fit;
+    // Residuals of every shared point under this fit; the next fit uses the ones below the cut.
+    std::vector<double> residuals(shared);
+    for (int i = 0; i < shared; ++i) residuals[i] = ((*fit) * source[i] - target[i]).norm();
+    const double cut =
+        std::max(options.min_trim_distance, options.trim_factor * Percentile(residuals, 0.5));
+    src.clear();
+    dst.clear();
+    double sum_sq = 0.0;
+    for (int i = 0; i < shared; ++i) {
+      if (residuals[i] > cut) continue;
+      src.push_back(source[i]);
+      dst.push_back(target[i]);
+      sum_sq += residuals[i] * residuals[i];
+    }
+    const bool converged = static_cast<int>(src.size()) == out.inliers;
+    out.inliers = static_cast<int>(src.size());
+    out.rms_residual = out.inliers > 0 ? std::sqrt(sum_sq / out.inliers) : 0.0;
+    if (converged || out.inliers < 3) break;
+  }
+  if (out.inliers < options.min_inlier_fraction * shared) {
+    return Expected<MapAlignment>::Error(std::to_string(out.inliers) + " of " +
+                                         std::to_string(shared) + " shared points agree");
+  }
+  return out;
+}
+
+int MergeMapInto(MapData* into, const MapData& from, const Sim3& into_from_from,
+                 KeyframeId first_keyframe_id) {
+  M2S_CHECK(into != nullptr);
+  std::unordered_map<KeyframeId, KeyframeId> new_id;
+  KeyframeId next = first_keyframe_id;
+  for (const auto& [id, kf] : from.keyframes()) {
+    M2S_CHECK(into->keyframe(next) == nullptr) << "keyframe id " << next << " already in use";
+    Keyframe copy = kf;
+    copy.id = next;
+    copy.world_from_camera = into_from_from.TransformPose(kf.world_from_camera);
+    into->AddKeyframe(std::move(copy));
+    new_id[id] = next++;
+  }
+  for (const auto& [id, point] : from.points()) {
+    if (into->point(id) == nullptr) {
+      const auto ref = new_id.find(point.reference_keyframe);
+      M2S_CHECK(ref != new_id.end()) << "point " << id << " refers to a missing keyframe";
+      into->AddPoint(id, into_from_from * point.position, ref->second);
+    }
+    for (const KeyframeId observer : point.observers) {
+      into->AddObservation(id, new_id.at(observer));
+    }
+  }
+  return static_cast<int>(new_id.size());
+}
+
+}  // namespace m2s::slam

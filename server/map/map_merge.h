@@ -1,0 +1,59 @@
+// Aligning and merging two maps of the same mesh by vertex id.
+//
+// Two maps built from the same scene (two sessions, two agents, or the maps before and after
+// a tracking loss) key their points by the same vertex ids, so the points they share are
+// exact correspondences: no place recognition, no descriptor matching, no false loops. Their
+// relative pose and scale (monocular maps have their own scale) is the Sim3 that maps the
+// shared points of one onto the other (Umeyama); the only outliers are badly triangulated
+// points, which a trimmed re-fit removes.
+//
+//   Expected<MapAlignment> a = AlignMaps(map_a, map_b, MapAlignmentOptions{});
+//   if (a) MergeMapInto(&map_a, map_b, a->into_from_from, /*first_keyframe_id=*/next_id);
+//
+// Thread-safety: functions on values; the caller holds the maps' locks.
+#pragma once
+
+#include <cstdint>
+
+#include "m2s/common/geometry.h"
+#include "m2s/common/status.h"
+#include "map/map_data.h"
+
+namespace m2s::slam {
+
+struct MapAlignmentOptions {
+  // Fewer shared points than this: no alignment.
+  int min_shared_points = 20;
+  // After the first fit, points whose residual is above `trim_factor` times the median
+  // residual (and above `min_trim_distance` in the target map's units) are left out and the
+  // fit repeated, at most `max_rounds` times.
+  double trim_factor = 4.0;
+  double min_trim_distance = 1e-9;
+  int max_rounds = 5;
+  // Inliers needed, as a fraction of the shared points.
+  double min_inlier_fraction = 0.5;
+
+  Status Check() const;
+};
+
+struct MapAlignment {
+  Sim3 into_from_from;  // x_into = into_from_from * x_from
+  int shared_points = 0;
+  int inliers = 0;
+  double rms_residual = 0.0;  // over the inliers, in the `into` map's units
+};
+
+// The Sim3 from `from`'s world to `into`'s world, fitted on the points both maps hold.
+// Errors: too few shared points, a degenerate (collinear) set, too few inliers.
+Expected<MapAlignment> AlignMaps(const MapData& into, const MapData& from,
+                                 const MapAlignmentOptions& options);
+
+// Copies `from` into `into`: keyframes get the ids first_keyframe_id, first_keyframe_id + 1, ...
+// (in `from`'s id order; none of them may exist in `into`) and poses moved by into_from_from;
+// points `into` lacks are added, moved likewise; a point both hold keeps `into`'s position and
+// gains the observations of `from`'s keyframes. Returns the id map (from id -> into id) size,
+// i.e. the number of keyframes added.
+int MergeMapInto(MapData* into, const MapData& from, const Sim3& into_from_from,
+                 KeyframeId first_keyframe_id);
+
+}  // namespace m2s::slam

@@ -1,0 +1,134 @@
+// Aligning and merging maps by vertex id: two maps of one scene, the second in its own world
+// and scale (a known Sim3 away), sharing some points; references are the true poses, points
+// and Sim3 the maps were built from.
+#include "map/map_merge.h"
+
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+namespace m2s::slam {
+namespace {
+
+struct World {
+  std::vector<Eigen::Vector3d> points;  // id = index
+  std::vector<Pose3> poses;             // world_from_camera of the keyframes
+};
+
+World MakeWorld() {
+  World w;
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> x(-2.0, 2.0), y(-1.5, 1.5), z(2.0, 5.0);
+  for (int i = 0; i < 300; ++i) w.points.emplace_back(x(rng), y(rng), z(rng));
+  for (int k = 0; k < 6; ++k) {
+    const Eigen::Quaterniond r(Eigen::AngleAxisd(0.05 * k, Eigen::Vector3d::UnitY()));
+    w.poses.emplace_back(r, Eigen::Vector3d(0.3 * k, 0.02 * k, 0.0));
+  }
+  return w;
+}
+
+// A map of points [first, last) seen by keyframes `poses`, all expressed in a world
+// `map_from_world` away from the true one; keyframe ids from `first_keyframe`.
+MapData BuildMap(const World& w, int first, int last, const std::vector<int>& keyframes,
+                 const Sim3& map_from_world, KeyframeId first_keyframe) {
+  MapData m;
+  KeyframeId id = first_keyframe;
+  for (const int k : keyframes) {
+    Keyframe kf;
+    kf.id = id++;
+    kf.seq = k;
+    kf.world_from_camera = map_from_world.TransformPose(w.poses[k]);
+    for (int i = first; i < last; ++i) {
+      kf.ids.push_back(static_cast<VertexId>(i));
+      kf.uvs.emplace_back(i, k);  // not used by alignment or merging
+    }
+    m.AddKeyframe(std::move(kf));
+  }
+  for (int i = first; i < last; ++i) {
+    m.AddPoint(static_cast<VertexId>(i), map_from_world * w.points[i], first_keyframe);
+    for (KeyframeId k = first_keyframe; k < id; ++k) m.AddObservation(static_cast<VertexId>(i), k);
+  }
+  return m;
+}
+
+double SimError(const Sim3& a, const Sim3& b) {
+  return std::abs(a.scale() - b.scale()) + a.rotation().angularDistance(b.rotation()) +
+         (a.translation() - b.translation()).norm();
+}
+
+const Sim3 kBFromWorld(0.37,
+                       Eigen::Quaterniond(Eigen::AngleAxisd(0.8,
+                                                            Eigen::Vector3d(1, 2, 3).normalized())),
+                       Eigen::Vector3d(-1.0, 4.0, 0.5));
+
+TEST(MapMerge, AlignmentRecoversTheKnownSim3AndLeavesOutBadPoints) {
+  const World w = MakeWorld();
+  const MapData a = BuildMap(w, 0, 200, {0, 1, 2}, Sim3(), 0);
+  MapData b = BuildMap(w, 100, 300, {3, 4, 5}, kBFromWorld, 0);
+  // Five shared points triangulated badly in b: 0.2 m (in b's units) off.
+  for (VertexId id = 150; id < 155; ++id) {
+    b.SetPointPosition(id, b.point(id)->position + Eigen::Vector3d(0.2, -0.1, 0.15));
+  }
+  const Expected<MapAlignment> aligned = AlignMaps(a, b, MapAlignmentOptions{});
+  ASSERT_TRUE(aligned) << aligned.error();
+  EXPECT_EQ(aligned->shared_points, 100);
+  EXPECT_EQ(aligned->inliers, 95);
+  EXPECT_LT(SimError(aligned->into_from_from, kBFromWorld.Inverse()), 1e-10);
+  EXPECT_LT(aligned->rms_residual, 1e-10);
+}
+
+TEST(MapMerge, MergedMapHoldsBothInOneWorld) {
+  const World w = MakeWorld();
+  MapData a = BuildMap(w, 0, 200, {0, 1, 2}, Sim3(), 0);
+  const MapData b = BuildMap(w, 100, 300, {3, 4, 5}, kBFromWorld, 0);
+  const Expected<MapAlignment> aligned = AlignMaps(a, b, MapAlignmentOptions{});
+  ASSERT_TRUE(aligned) << aligned.error();
+  EXPECT_EQ(MergeMapInto(&a, b, aligned->into_from_from, 10), 3);
+  ASSERT_EQ(a.keyframes().size(), 6u);
+  ASSERT_EQ(a.points().size(), 300u);
+  // b's keyframes 0, 1, 2 are a's 10, 11, 12, at the true poses of keyframes 3, 4, 5.
+  for (int k = 0; k < 3; ++k) {
+    const Keyframe* kf = a.keyframe(10 + k);
+    ASSERT_NE(kf, nullptr);
+    EXPECT_LT((kf->world_from_camera.translation() - w.poses[3 + k].translation()).norm(), 1e-10);
+    EXPECT_LT(kf->world_from_camera.rotation().angularDistance(w.poses[3 + k].rotation()), 1e-10);
+  }
+  for (int i = 0; i < 300; ++i) {
+    const MapPoint* p = a.point(static_cast<VertexId>(i));
+    ASSERT_NE(p, nullptr) << i;
+    EXPECT_LT((p->position - w.points[i]).norm(), 1e-10) << i;
+    // Shared points are seen by both maps' keyframes, the others by their own map's.
+    const std::vector<KeyframeId> expected =
+        i < 100 ? std::vector<KeyframeId>{0, 1, 2}
+                : (i < 200 ? std::vector<KeyframeId>{0, 1, 2, 10, 11, 12}
+                           : std::vector<KeyframeId>{10, 11, 12});
+    EXPECT_EQ(p->observers, expected) << i;
+  }
+}
+
+TEST(MapMerge, RefusesTooFewSharedOrDegeneratePoints) {
+  const World w = MakeWorld();
+  const MapData a = BuildMap(w, 0, 200, {0, 1}, Sim3(), 0);
+  const MapData few = BuildMap(w, 190, 300, {4, 5}, kBFromWorld, 0);  // 10 shared
+  const Expected<MapAlignment> not_enough = AlignMaps(a, few, MapAlignmentOptions{});
+  ASSERT_FALSE(not_enough);
+  EXPECT_NE(not_enough.error().find("share 10 points"), std::string::npos) << not_enough.error();
+
+  World line = w;
+  for (int i = 0; i < 300; ++i)
+    line.points[i] = Eigen::Vector3d(0.01 * i, 0.02 * i, 3.0 + 0.005 * i);
+  const MapData la = BuildMap(line, 0, 200, {0, 1}, Sim3(), 0);
+  const MapData lb = BuildMap(line, 100, 300, {4, 5}, kBFromWorld, 0);
+  const Expected<MapAlignment> collinear = AlignMaps(la, lb, MapAlignmentOptions{});
+  ASSERT_FALSE(collinear);
+  EXPECT_NE(collinear.error().find("degenerate"), std::string::npos) << collinear.error();
+
+  MapAlignmentOptions bad;
+  bad.trim_factor = 0.5;
+  EXPECT_FALSE(AlignMaps(a, few, bad));
+}
+
+}  // namespace
+}  // namespace m2s::slam
