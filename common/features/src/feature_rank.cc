@@ -62,30 +62,54 @@ std::vector<uint32_t> SelectBalanced(std::span<const VertexId> ids, std::span<co
   std::vector<uint32_t> kept(n);
   std::iota(kept.begin(), kept.end(), 0u);
   if (budget <= 0 || n <= static_cast<size_t>(budget)) return kept;
-  struct Key {
+  // Features bucketed by cell (counting sort), each with its rank.
+  int num_cells = 0;
+  for (const int c : cells) num_cells = std::max(num_cells, c + 1);
+  std::vector<uint32_t> begin(static_cast<size_t>(num_cells) + 1, 0);
+  for (const int c : cells) ++begin[static_cast<size_t>(c) + 1];
+  std::partial_sum(begin.begin(), begin.end(), begin.begin());
+  struct Ranked {
     uint64_t rank;
-    int cell;
-    uint32_t level;
     uint32_t index;
+    bool operator<(const Ranked& o) const { return rank < o.rank; }
   };
-  std::vector<Key> keys(n);
+  std::vector<Ranked> bucketed(n);
+  std::vector<uint32_t> fill(begin.begin(), begin.end() - 1);
   for (size_t i = 0; i < n; ++i) {
-    keys[i] = {FeatureRank(ids[i]), cells[i], 0, static_cast<uint32_t>(i)};
+    bucketed[fill[static_cast<size_t>(cells[i])]++] = {FeatureRank(ids[i]),
+                                                       static_cast<uint32_t>(i)};
   }
-  // Levels: the place of each feature in its cell's rank order.
-  std::sort(keys.begin(), keys.end(), [](const Key& a, const Key& b) {
-    return a.cell != b.cell ? a.cell < b.cell : a.rank < b.rank;
-  });
-  for (size_t i = 0; i < n; ++i) {
-    keys[i].level = (i > 0 && keys[i].cell == keys[i - 1].cell) ? keys[i - 1].level + 1 : 0;
-  }
-  // The `budget` lowest by (level, rank); distinct ids have distinct ranks, so no ties.
-  const auto by_level = [](const Key& a, const Key& b) {
-    return a.level != b.level ? a.level < b.level : a.rank < b.rank;
+  // Whole levels: the largest L with sum over cells of min(count, L) <= budget.
+  auto whole_levels_size = [&](uint32_t level) {
+    size_t total = 0;
+    for (int c = 0; c < num_cells; ++c) total += std::min(begin[c + 1] - begin[c], level);
+    return total;
   };
-  std::nth_element(keys.begin(), keys.begin() + (budget - 1), keys.end(), by_level);
-  kept.resize(static_cast<size_t>(budget));
-  for (int i = 0; i < budget; ++i) kept[i] = keys[i].index;
+  uint32_t lo = 0, hi = static_cast<uint32_t>(n);
+  while (lo < hi) {  // the largest level that fits
+    const uint32_t mid = lo + (hi - lo + 1) / 2;
+    if (whole_levels_size(mid) <= static_cast<size_t>(budget)) {
+      lo = mid;
+    } else {
+      hi = mid - 1;
+    }
+  }
+  const uint32_t levels = lo;
+  // Every cell keeps its `levels` lowest-ranked features; the next one of each fuller cell is
+  // a candidate for the rest of the budget, lowest rank first.
+  kept.clear();
+  std::vector<Ranked> candidates;
+  for (int c = 0; c < num_cells; ++c) {
+    const auto first = bucketed.begin() + begin[c], last = bucketed.begin() + begin[c + 1];
+    if (static_cast<uint32_t>(last - first) > levels) {
+      std::nth_element(first, first + levels, last);
+      candidates.push_back(first[levels]);
+    }
+    for (auto it = first; it != last && it - first < levels; ++it) kept.push_back(it->index);
+  }
+  const size_t rest = static_cast<size_t>(budget) - kept.size();
+  std::nth_element(candidates.begin(), candidates.begin() + rest, candidates.end());
+  for (size_t k = 0; k < rest; ++k) kept.push_back(candidates[k].index);
   std::sort(kept.begin(), kept.end());
   return kept;
 }
