@@ -19,8 +19,10 @@
 #include "m2s/common/types.h"
 
 // On x86-64 with GCC, hot loops are compiled twice (baseline SSE2 and x86-64-v3: AVX2 + FMA)
-// and the variant is picked at load time; elsewhere the baseline build is used.
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && defined(__ELF__)
+// and the variant is picked at load time; elsewhere the baseline build is used. Not under
+// ThreadSanitizer: its instrumented ifunc resolver runs before the TSan runtime and crashes.
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && defined(__ELF__) && \
+    !defined(__SANITIZE_THREAD__)
 #define M2S_KERNEL_CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
 #else
 #define M2S_KERNEL_CLONES
