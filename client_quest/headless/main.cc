@@ -2,7 +2,7 @@
 //
 //   m2s_client [--mesh FILE --trajectory GT.tum] [--camera CAMERA.json | --width W --height H
 //              --fov-deg F] [--fps F] [--fast] [--on-device | --lcm-url URL]
-//              [--projector gpu|cpu] [--occlusion] [--noise-px S --outlier-ids P --dropout P
+//              [--projector gpu|cpu] [--no-occlusion] [--noise-px S --outlier-ids P --dropout P
 //              --seed N] [--key-file FILE [--encrypt]] [--out DIR]
 //
 // Without --mesh / --trajectory it uses the embedded default scene and its trajectory.
@@ -43,7 +43,9 @@ int main(int argc, char** argv) {
   device_opt->excludes(url_opt);
   app.add_option("--projector", options.projector, "gpu (default, CPU fallback) or cpu")
       ->capture_default_str();
-  app.add_flag("--occlusion", options.projector_options.occlusion, "Remove occluded vertices");
+  app.add_flag("--occlusion,!--no-occlusion", options.projector_options.occlusion,
+               "Remove vertices hidden behind nearer surfaces (default; --no-occlusion projects "
+               "every vertex in view, the paper's setting)");
   app.add_option("--noise-px", options.noise.pixel_noise_sigma, "Gaussian pixel noise (px)");
   app.add_option("--outlier-ids", options.noise.wrong_id_fraction, "Fraction of wrong ids");
   app.add_option("--dropout", options.noise.dropout_probability, "Feature dropout probability");

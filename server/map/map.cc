@@ -2,6 +2,8 @@
 
 #include <algorithm>
 
+#include "map/map_merge.h"
+
 namespace m2s::slam {
 
 KeyframeId Map::NextKeyframeId() {
@@ -78,6 +80,28 @@ void Map::Clear() {
   data_.ClearChanges();
   ++revision_;
   next_delta_full_ = true;
+}
+
+MapData Map::TakeData() {
+  std::unique_lock<std::shared_mutex> lock(mutex_);
+  MapData out = std::move(data_);
+  out.ClearChanges();
+  data_ = MapData();
+  ++revision_;
+  next_delta_full_ = true;
+  return out;
+}
+
+uint64_t Map::MergeInto(MapData base, const Sim3& base_from_map) {
+  std::unique_lock<std::shared_mutex> lock(mutex_);
+  MergeMapInto(&base, data_, base_from_map);
+  base.ClearChanges();
+  data_ = std::move(base);
+  ++revision_;
+  next_delta_full_ = true;
+  ++correction_.epoch;
+  correction_.new_from_old = base_from_map;
+  return correction_.epoch;
 }
 
 void Map::PublishCorrection(const Sim3& new_from_old) {

@@ -69,6 +69,13 @@ class Map {
 
   // Forgets everything; the next delta is full.
   void Clear();
+  // Moves the contents out (set aside by multi-map tracking) and leaves the map empty as
+  // Clear() does; keyframe ids stay unique across the two.
+  MapData TakeData();
+  // Multi-map merge (map/map_merge.h, MergeMapInto): the contents move by base_from_map into
+  // `base`, which becomes the map; the move is published as a world correction (tracking
+  // carries its pose over) and the next delta is full. Returns the correction's epoch.
+  uint64_t MergeInto(MapData base, const Sim3& base_from_map);
 
   void PublishCorrection(const Sim3& new_from_old);
   WorldCorrection correction() const;

@@ -74,18 +74,38 @@ Expected<MapAlignment> AlignMaps(const MapData& into, const MapData& from,
   return out;
 }
 
-int MergeMapInto(MapData* into, const MapData& from, const Sim3& into_from_from,
-                 KeyframeId first_keyframe_id) {
+std::unordered_map<KeyframeId, KeyframeId> MergeMapInto(
+    MapData* into, const MapData& from, const Sim3& into_from_from,
+    std::optional<KeyframeId> first_keyframe_id) {
   M2S_CHECK(into != nullptr);
   std::unordered_map<KeyframeId, KeyframeId> new_id;
-  KeyframeId next = first_keyframe_id;
+  KeyframeId next = first_keyframe_id.value_or(0);
+  auto assign = [&](KeyframeId id) {
+    const KeyframeId target = first_keyframe_id ? next++ : id;
+    M2S_CHECK(into->keyframe(target) == nullptr && into->links().count(target) == 0)
+        << "keyframe id " << target << " already in use";
+    new_id[id] = target;
+    return target;
+  };
   for (const auto& [id, kf] : from.keyframes()) {
-    M2S_CHECK(into->keyframe(next) == nullptr) << "keyframe id " << next << " already in use";
     Keyframe copy = kf;
-    copy.id = next;
+    copy.id = assign(id);
     copy.world_from_camera = into_from_from.TransformPose(kf.world_from_camera);
     into->AddKeyframe(std::move(copy));
-    new_id[id] = next++;
+  }
+  std::vector<KeyframeId> linked;
+  for (const auto& [id, link] : from.links()) linked.push_back(id);
+  std::sort(linked.begin(), linked.end());
+  for (const KeyframeId id : linked) assign(id);
+  for (const KeyframeId id : linked) {
+    // A relative pose keeps its rotation; its translation takes the Sim3's scale.
+    const KeyframeLink& link = from.links().at(id);
+    const auto parent = new_id.find(link.parent);
+    M2S_CHECK(parent != new_id.end()) << "link of keyframe " << id << " to a missing parent";
+    into->SetLink(
+        new_id.at(id),
+        {parent->second, Pose3(link.parent_from_camera.rotation(),
+                               into_from_from.scale() * link.parent_from_camera.translation())});
   }
   for (const auto& [id, point] : from.points()) {
     if (into->point(id) == nullptr) {
@@ -97,7 +117,7 @@ int MergeMapInto(MapData* into, const MapData& from, const Sim3& into_from_from,
       into->AddObservation(id, new_id.at(observer));
     }
   }
-  return static_cast<int>(new_id.size());
+  return new_id;
 }
 
 }  // namespace m2s::slam

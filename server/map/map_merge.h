@@ -8,12 +8,14 @@
 // points, which a trimmed re-fit removes.
 //
 //   Expected<MapAlignment> a = AlignMaps(map_a, map_b, MapAlignmentOptions{});
-//   if (a) MergeMapInto(&map_a, map_b, a->into_from_from, /*first_keyframe_id=*/next_id);
+//   if (a) MergeMapInto(&map_a, map_b, a->into_from_from);
 //
 // Thread-safety: functions on values; the caller holds the maps' locks.
 #pragma once
 
 #include <cstdint>
+#include <optional>
+#include <unordered_map>
 
 #include "m2s/common/geometry.h"
 #include "m2s/common/status.h"
@@ -48,12 +50,16 @@ struct MapAlignment {
 Expected<MapAlignment> AlignMaps(const MapData& into, const MapData& from,
                                  const MapAlignmentOptions& options);
 
-// Copies `from` into `into`: keyframes get the ids first_keyframe_id, first_keyframe_id + 1, ...
-// (in `from`'s id order; none of them may exist in `into`) and poses moved by into_from_from;
-// points `into` lacks are added, moved likewise; a point both hold keeps `into`'s position and
-// gains the observations of `from`'s keyframes. Returns the id map (from id -> into id) size,
-// i.e. the number of keyframes added.
-int MergeMapInto(MapData* into, const MapData& from, const Sim3& into_from_from,
-                 KeyframeId first_keyframe_id);
+// Copies `from` into `into`, moved by into_from_from. Keyframes keep their ids, or with
+// `first_keyframe_id` get first_keyframe_id, first_keyframe_id + 1, ... in `from`'s id order
+// (maps of one system draw ids from one counter and keep them; maps of different systems
+// renumber). No resulting id may exist in `into`. The links of `from`'s removed keyframes come
+// along (renumbered after the keyframes), so trajectories that refer to them stay resolvable.
+// Points `into` lacks are added; a point both hold keeps `into`'s position and gains the
+// observations of `from`'s keyframes. Returns the id map (`from` id -> `into` id) of the
+// keyframes and links copied.
+std::unordered_map<KeyframeId, KeyframeId> MergeMapInto(
+    MapData* into, const MapData& from, const Sim3& into_from_from,
+    std::optional<KeyframeId> first_keyframe_id = std::nullopt);
 
 }  // namespace m2s::slam

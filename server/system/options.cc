@@ -79,6 +79,19 @@ Status DriftOptions::Check() const {
   return Status::Ok();
 }
 
+Status MultiMapOptions::Check() const {
+  constexpr char kName[] = "MultiMapOptions: ";
+  if (!(new_map_after_lost_s >= 0.0) || !std::isfinite(new_map_after_lost_s)) {
+    return Fail(kName, "new_map_after_lost_s must be finite and >= 0");
+  }
+  if (min_features < 0) return Fail(kName, "min_features must be >= 0");
+  if (merge_min_shared_points < 3) return Fail(kName, "merge_min_shared_points must be >= 3");
+  if (!(merge_min_inlier_fraction > 0.0 && merge_min_inlier_fraction <= 1.0)) {
+    return Fail(kName, "merge_min_inlier_fraction must be in (0, 1]");
+  }
+  return Status::Ok();
+}
+
 Status Options::Check() const {
   constexpr char kName[] = "Options: ";
   if (Status s = camera.Check(); !s) return s;
@@ -104,7 +117,7 @@ Status Options::Check() const {
     return Fail(kName, "mapping_nice must be in [0, 19]");
   }
   for (const Status& stage :
-       {initializer.Check(), tracker.Check(), mapper.Check(), drift.Check()}) {
+       {initializer.Check(), tracker.Check(), mapper.Check(), drift.Check(), multi_map.Check()}) {
     if (!stage) return stage;
   }
   return Status::Ok();

@@ -9,6 +9,7 @@
 
 #include "m2s/common/logging.h"
 #include "m2s/common/numeric.h"
+#include "map/map_merge.h"
 #include "tracking/feature_budget.h"
 
 namespace m2s::slam {
@@ -19,6 +20,14 @@ constexpr size_t kResultQueueCapacity = 4096;
 // Lost this many frames in a row with a map this small: the initialisation was bad, start over.
 constexpr int kLostFramesBeforeReinit = 10;
 constexpr int kSmallMapKeyframes = 4;
+// Set-aside maps kept for merging; beyond this the one with the fewest keyframes is dropped.
+constexpr size_t kMaxSetAsideMaps = 8;
+// The joint refinement after a merge.
+constexpr int kMergeBaIterations = 15;
+
+bool HasPose(TrackingState state) {
+  return state == TrackingState::kOk || state == TrackingState::kRelocalized;
+}
 
 double MsSince(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
@@ -72,7 +81,10 @@ void SlamSystem::MappingLoop() {
     if (setpriority(PRIO_PROCESS, tid, std::min(nice, 19)) != 0)
       M2S_LOG(kWarning) << "could not lower the mapping thread's priority";
   }
-  while (auto kf = keyframes_.Pop()) mapper_.Process(*kf, /*backlog=*/keyframes_.size() > 0);
+  while (auto kf = keyframes_.Pop()) {
+    mapper_.Process(*kf, /*backlog=*/keyframes_.size() > 0);
+    TryMergeSetAsideMaps();
+  }
 }
 
 void SlamSystem::TrackingLoop() {
@@ -117,9 +129,24 @@ bool SlamSystem::WaitForResult(TrackResult* result, double timeout_s) {
   return true;
 }
 
-void SlamSystem::AppendRecord(const Record& record) {
+void SlamSystem::AppendRecord(Record* record) {
   std::lock_guard<std::mutex> lock(trajectory_mutex_);
-  trajectory_.push_back(record);
+  record->map_id = current_map_;
+  // Tracked in the merged map's world, just before the merge.
+  if (last_merge_ && record->correction_epoch < last_merge_->epoch) {
+    MoveRecord(*last_merge_, record);
+  }
+  trajectory_.push_back(*record);
+}
+
+void SlamSystem::MoveRecord(const MergeNotice& notice, Record* record) {
+  const Sim3& s = notice.into_from_from;
+  record->world_from_camera = s.TransformPose(record->world_from_camera);
+  // A relative pose keeps its rotation; its translation takes the scale.
+  record->reference_from_camera = Pose3(record->reference_from_camera.rotation(),
+                                        s.scale() * record->reference_from_camera.translation());
+  record->map_id = notice.into_map;
+  record->correction_epoch = notice.epoch;
 }
 
 TrackResult SlamSystem::TrackLocked(const Frame& frame) {
@@ -174,7 +201,10 @@ TrackResult SlamSystem::TrackLocked(const Frame& frame) {
                 out.reference_from_camera,
                 result.keyframe_created,
                 frame.ground_truth_world_from_camera};
-  AppendRecord(record);
+  record.correction_epoch = tracker_.correction_epoch();
+  AppendRecord(&record);
+  result.map_id = record.map_id;
+  if (HasPose(out.state)) result.world_from_camera = record.world_from_camera;
   {
     std::lock_guard<std::mutex> s(stats_mutex_);
     if (out.state == TrackingState::kLost) {
@@ -187,37 +217,137 @@ TrackResult SlamSystem::TrackLocked(const Frame& frame) {
   if (out.keyframe) {
     if (options_.deterministic) {
       mapper_.Process(*out.keyframe);
+      TryMergeSetAsideMaps();
     } else {
       keyframes_.Push(std::move(*out.keyframe));
     }
   }
-  // A map this young that loses track was initialised badly: start over.
-  lost_streak_ = out.state == TrackingState::kLost ? lost_streak_ + 1 : 0;
-  if (lost_streak_ >= kLostFramesBeforeReinit && !localization_only_) {
-    const size_t keyframes = map_.Read([](const MapData& m) { return m.keyframes().size(); });
-    if (keyframes <= static_cast<size_t>(kSmallMapKeyframes)) {
-      M2S_LOG(kWarning) << "lost right after initialisation; initialising again";
-      StopMapping(/*discard_queued=*/true);
-      map_.Clear();
-      tracker_.Reset();
-      initializer_.Reset();
-      StartMapping();
-      lost_streak_ = 0;
-    }
-  }
+  HandleLost(out, frame, features.size());
   result.tracking_ms = MsSince(t0);
   return result;
+}
+
+void SlamSystem::HandleLost(const TrackerOutput& out, const Frame& frame, size_t num_features) {
+  if (out.state != TrackingState::kLost) {
+    lost_streak_ = 0;
+    lost_since_.reset();
+    return;
+  }
+  ++lost_streak_;
+  if (localization_only_) return;
+  const size_t keyframes = map_.Read([](const MapData& m) { return m.keyframes().size(); });
+  if (keyframes <= static_cast<size_t>(kSmallMapKeyframes)) {
+    // A map this young that loses track was initialised badly: start over without it.
+    if (lost_streak_ >= kLostFramesBeforeReinit) {
+      M2S_LOG(kWarning) << "lost right after initialisation; initialising again";
+      StartNewMap(/*keep=*/false);
+    }
+    return;
+  }
+  const MultiMapOptions& multi = options_.multi_map;
+  if (!multi.enabled || num_features < static_cast<size_t>(multi.min_features)) return;
+  if (!lost_since_) lost_since_ = frame.timestamp;
+  if (frame.timestamp - *lost_since_ >= multi.new_map_after_lost_s) {
+    M2S_LOG(kInfo) << "lost for " << frame.timestamp - *lost_since_ << " s; map " << current_map_
+                   << " set aside, a new map starts";
+    StartNewMap(/*keep=*/true);
+  }
+}
+
+void SlamSystem::StartNewMap(bool keep) {
+  // A kept map's queued keyframes are mapped into it first.
+  StopMapping(/*discard_queued=*/!keep);
+  {
+    std::lock_guard<std::mutex> t(trajectory_mutex_);
+    std::lock_guard<std::mutex> m(maps_mutex_);
+    MapData data = map_.TakeData();
+    if (keep && !data.empty()) {
+      if (set_aside_.size() >= kMaxSetAsideMaps) {
+        const auto smallest = std::min_element(
+            set_aside_.begin(), set_aside_.end(), [](const SetAsideMap& a, const SetAsideMap& b) {
+              return a.data.keyframes().size() < b.data.keyframes().size();
+            });
+        M2S_LOG(kWarning) << "too many set-aside maps: map " << smallest->id << " dropped";
+        set_aside_.erase(smallest);
+      }
+      set_aside_.push_back({current_map_, std::move(data)});
+    }
+    current_map_ = maps_created_++;
+  }
+  tracker_.Reset();
+  initializer_.Reset();
+  lost_streak_ = 0;
+  lost_since_.reset();
+  StartMapping();
+}
+
+void SlamSystem::TryMergeSetAsideMaps() {
+  if (!options_.multi_map.enabled) return;
+  MapAlignmentOptions align;
+  align.min_shared_points = options_.multi_map.merge_min_shared_points;
+  align.min_inlier_fraction = options_.multi_map.merge_min_inlier_fraction;
+  std::optional<size_t> base;
+  MapAlignment alignment;
+  {
+    std::lock_guard<std::mutex> m(maps_mutex_);
+    if (set_aside_.empty()) return;
+    map_.Read([&](const MapData& current) {
+      if (current.keyframes().size() < 2) return;
+      for (size_t i = set_aside_.size(); i-- > 0;) {  // the newest first
+        Expected<MapAlignment> a = AlignMaps(set_aside_[i].data, current, align);
+        if (a) {
+          base = i;
+          alignment = *a;
+          return;
+        }
+      }
+    });
+  }
+  if (!base) return;
+  int from = 0, into = 0;
+  {
+    std::lock_guard<std::mutex> t(trajectory_mutex_);
+    std::lock_guard<std::mutex> m(maps_mutex_);
+    SetAsideMap target = std::move(set_aside_[*base]);
+    set_aside_.erase(set_aside_.begin() + static_cast<std::ptrdiff_t>(*base));
+    const uint64_t epoch = map_.MergeInto(std::move(target.data), alignment.into_from_from);
+    const MergeNotice notice{epoch, current_map_, target.id, alignment.into_from_from};
+    for (Record& r : trajectory_) {
+      if (r.map_id == current_map_) MoveRecord(notice, &r);
+    }
+    from = current_map_;
+    into = target.id;
+    current_map_ = target.id;
+    last_merge_ = notice;
+    ++map_merges_;
+  }
+  M2S_LOG(kInfo) << "map " << from << " merged into map " << into << ": " << alignment.inliers
+                 << " of " << alignment.shared_points << " shared points fit, rms "
+                 << alignment.rms_residual << ", scale " << alignment.into_from_from.scale();
+  mapper_.GlobalBundleAdjust(kMergeBaIterations, options_.mapper.local_ba_max_points);
 }
 
 TrackResult SlamSystem::Initialise(const Frame& frame, const SortedFeatures& features,
                                    TrackResult result) {
   auto initial = initializer_.Process(frame.seq, frame.timestamp, features);
-  Record record{
-      frame.seq, frame.timestamp, TrackingState::kNotInitialized,      Pose3(), std::nullopt,
-      Pose3(),   false,           frame.ground_truth_world_from_camera};
+  // While a later map initialises, the frames have no pose in any map: they are lost.
+  bool later_map = false;
+  {
+    std::lock_guard<std::mutex> lock(maps_mutex_);
+    later_map = maps_created_ > 1;
+  }
+  const TrackingState waiting = later_map ? TrackingState::kLost : TrackingState::kNotInitialized;
+  Record record{frame.seq,    frame.timestamp, waiting, Pose3(),
+                std::nullopt, Pose3(),         false,   frame.ground_truth_world_from_camera};
+  record.correction_epoch = map_.correction().epoch;
   if (!initial) {
-    result.state = TrackingState::kNotInitialized;
-    AppendRecord(record);
+    result.state = waiting;
+    AppendRecord(&record);
+    result.map_id = record.map_id;
+    if (later_map) {
+      std::lock_guard<std::mutex> s(stats_mutex_);
+      ++stats_.frames_lost;
+    }
     return result;
   }
   const KeyframeId first = map_.NextKeyframeId();
@@ -226,10 +356,12 @@ TrackResult SlamSystem::Initialise(const Frame& frame, const SortedFeatures& fea
   tracker_.Start(second, initial->second.world_from_camera,
                  static_cast<int>(initial->points.size()), frame.timestamp,
                  MedianDepth(initial->second.world_from_camera.Inverse(), initial->points));
+  int64_t first_was_lost = 0;
   {
     std::lock_guard<std::mutex> lock(trajectory_mutex_);
     for (Record& r : trajectory_) {
       if (r.seq == initial->first.seq) {
+        first_was_lost += r.state == TrackingState::kLost ? 1 : 0;
         r.state = TrackingState::kOk;
         r.reference = first;
         r.reference_from_camera = Pose3::Identity();
@@ -241,11 +373,14 @@ TrackResult SlamSystem::Initialise(const Frame& frame, const SortedFeatures& fea
   record.world_from_camera = initial->second.world_from_camera;
   record.reference = second;
   record.is_keyframe = true;
-  AppendRecord(record);
+  AppendRecord(&record);
+  result.map_id = record.map_id;
   {
     std::lock_guard<std::mutex> s(stats_mutex_);
     stats_.frames_tracked += 2;
+    stats_.frames_lost -= first_was_lost;
   }
+  if (options_.deterministic) TryMergeSetAsideMaps();
   result.state = TrackingState::kOk;
   result.world_from_camera = initial->second.world_from_camera;
   result.num_inliers = static_cast<int>(initial->points.size());
@@ -261,19 +396,29 @@ std::vector<TrajectoryEntry> SlamSystem::Trajectory() const {
   std::lock_guard<std::mutex> lock(trajectory_mutex_);
   std::vector<TrajectoryEntry> out;
   out.reserve(trajectory_.size());
-  map_.Read([&](const MapData& m) {
+  std::lock_guard<std::mutex> maps(maps_mutex_);
+  map_.Read([&](const MapData& current) {
+    auto map_of = [&](int id) -> const MapData* {
+      if (id == current_map_) return &current;
+      for (const SetAsideMap& m : set_aside_) {
+        if (m.id == id) return &m.data;
+      }
+      return nullptr;  // dropped: the pose at tracking time
+    };
     for (const Record& r : trajectory_) {
       TrajectoryEntry e;
       e.seq = r.seq;
       e.timestamp = r.timestamp;
       e.state = r.state;
       e.world_from_camera = r.world_from_camera;
-      if (r.reference) {
-        if (auto ref = m.ResolveKeyframePose(*r.reference))
+      const MapData* m = map_of(r.map_id);
+      if (r.reference && m != nullptr) {
+        if (auto ref = m->ResolveKeyframePose(*r.reference))
           e.world_from_camera = *ref * r.reference_from_camera;
       }
       e.is_keyframe = r.is_keyframe;
       e.ground_truth_world_from_camera = r.ground_truth;
+      e.map_id = r.map_id;
       out.push_back(e);
     }
   });
@@ -287,6 +432,16 @@ SystemStats SlamSystem::Stats() const {
     s = stats_;
   }
   s.frames_dropped_queue = input_.dropped();
+  {
+    std::lock_guard<std::mutex> t(trajectory_mutex_);
+    std::lock_guard<std::mutex> m(maps_mutex_);
+    s.maps_created = maps_created_;
+    s.map_merges = map_merges_;
+    s.current_map = current_map_;
+    for (const Record& r : trajectory_) {
+      if (HasPose(r.state) && r.map_id != current_map_) ++s.frames_in_unmerged_maps;
+    }
+  }
   s.loop_corrections = mapper_.stats().loop_corrections;
   map_.Read([&](const MapData& m) {
     s.keyframes = static_cast<int>(m.keyframes().size());
@@ -296,6 +451,17 @@ SystemStats SlamSystem::Stats() const {
   return s;
 }
 
+void SlamSystem::ForgetMapsLocked() {
+  lost_since_.reset();
+  std::lock_guard<std::mutex> t(trajectory_mutex_);
+  std::lock_guard<std::mutex> m(maps_mutex_);
+  set_aside_.clear();
+  current_map_ = 0;
+  maps_created_ = 1;
+  map_merges_ = 0;
+  last_merge_.reset();
+}
+
 void SlamSystem::ResetLocked(bool keep_localization_only) {
   StopMapping(/*discard_queued=*/true);
   map_.Clear();
@@ -303,6 +469,7 @@ void SlamSystem::ResetLocked(bool keep_localization_only) {
   initializer_.Reset();
   validator_.Reset();
   lost_streak_ = 0;
+  ForgetMapsLocked();
   if (!keep_localization_only) localization_only_ = options_.localization_only;
   tracker_.SetLocalizationOnly(localization_only_);
   {
@@ -334,6 +501,7 @@ Status SlamSystem::LoadMap(const std::string& path) {
   initializer_.Reset();
   validator_.Reset();
   lost_streak_ = 0;
+  ForgetMapsLocked();
   localization_only_ = true;
   tracker_.SetLocalizationOnly(true);
   tracker_.StartLost();

@@ -2,10 +2,19 @@
 // thread fed by the latest-wins input queue) -> bounded keyframe queue -> local mapping thread
 // (inline when Options::deterministic). See m2s/slam/system.h for the contract.
 //
+// Multi-map: when tracking stays lost (MultiMapOptions), the map is set aside and a new one
+// initialises from the next frames. After each keyframe the mapping stage tries to align every
+// set-aside map with the current one on their shared vertex ids (map/map_merge.h); the first
+// that fits is the base the current map merges into: the current map's keyframes and points
+// move by the fitted Sim3 into the set-aside map's world, the move is published as a world
+// correction (tracking carries its pose over, as after drift correction), a global BA refines
+// the union, and the trajectory records of the merged map follow.
+//
 // Threads: Track() and the tracking thread serialise on track_mutex_; mapping runs in
-// mapping_thread_ and is the map's only writer while it runs; Reset/LoadMap stop mapping, change
-// the map, and start it again. Shutdown stops the queues (end of stream), discards queued frames
-// and keyframes, and joins both threads.
+// mapping_thread_ and is the map's only writer while it runs (merges included); Reset/LoadMap
+// and starting a new map stop mapping, change the map, and start it again. Shutdown stops the
+// queues (end of stream), discards queued frames and keyframes, and joins both threads.
+// Lock order: trajectory_mutex_, then maps_mutex_, then the map's own lock.
 #pragma once
 
 #include <atomic>
@@ -55,6 +64,21 @@ class SlamSystem final : public System {
     Pose3 reference_from_camera;
     bool is_keyframe = false;
     std::optional<Pose3> ground_truth;
+    int map_id = 0;                 // set by AppendRecord
+    uint64_t correction_epoch = 0;  // the world the poses are in (Map::correction())
+  };
+  // The last merge: records tracked in the merged map before it (an older correction epoch)
+  // and appended after it are moved likewise.
+  struct MergeNotice {
+    uint64_t epoch = 0;
+    int from_map = 0;
+    int into_map = 0;
+    Sim3 into_from_from;
+  };
+  // A map set aside when tracking stayed lost in it, until it merges.
+  struct SetAsideMap {
+    int id = 0;
+    MapData data;
   };
 
   TrackResult TrackLocked(const Frame& frame);
@@ -64,7 +88,21 @@ class SlamSystem final : public System {
   void StopMapping(bool discard_queued);
   void MappingLoop();
   void TrackingLoop();
-  void AppendRecord(const Record& record);
+  // Appends the record, setting its map (the current one) and moving it into the merged
+  // map's world when it was tracked just before a merge.
+  void AppendRecord(Record* record);
+  // Lost-time bookkeeping after a tracked or lost frame; may start a new map (or discard a
+  // young one).
+  void HandleLost(const TrackerOutput& out, const Frame& frame, size_t num_features);
+  // Sets the current map aside (when `keep`; otherwise drops it) and starts a new one.
+  void StartNewMap(bool keep);
+  // Merges the current map into the first set-aside map that aligns with it (the map's
+  // writer calls this: the mapping thread, or Track() in deterministic mode).
+  void TryMergeSetAsideMaps();
+  // Reset/LoadMap: no set-aside maps, the next map is map 0 again.
+  void ForgetMapsLocked();
+  // Moves a record of map `notice.from_map` into the merged map's world.
+  static void MoveRecord(const MergeNotice& notice, Record* record);
 
   Options options_;
   Map map_;
@@ -75,6 +113,7 @@ class SlamSystem final : public System {
   LocalMapper mapper_;
   bool localization_only_;
   int lost_streak_ = 0;
+  std::optional<double> lost_since_;  // frame time of the first lost frame that counts
 
   std::mutex track_mutex_;
   BoundedQueue<Frame> input_;
@@ -87,6 +126,13 @@ class SlamSystem final : public System {
 
   mutable std::mutex trajectory_mutex_;
   std::vector<Record> trajectory_;
+
+  mutable std::mutex maps_mutex_;
+  std::vector<SetAsideMap> set_aside_;
+  int current_map_ = 0;  // written under trajectory_mutex_ and maps_mutex_
+  int maps_created_ = 1;
+  int64_t map_merges_ = 0;
+  std::optional<MergeNotice> last_merge_;  // under trajectory_mutex_
 
   mutable std::mutex stats_mutex_;
   SystemStats stats_;  // frame counters (map and queue figures are filled in by Stats())

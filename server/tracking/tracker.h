@@ -80,6 +80,8 @@ class Tracker {
                       bool mapping_busy);
 
   bool started() const { return started_; }
+  // Map::correction().epoch of the world the last returned pose is expressed in.
+  uint64_t correction_epoch() const { return correction_epoch_; }
   bool lost() const { return lost_; }
 
  private:

@@ -51,10 +51,12 @@ std::optional<Alignment> AlignTrajectory(const std::vector<Eigen::Vector3d>& est
 void Evaluate(const Scene& scene, const Trajectory& ground_truth, slam::System& system,
               const std::vector<slam::TrackResult>& results, const std::string& dump_prefix,
               RunMetrics* m) {
+  const slam::SystemStats stats = system.Stats();
   std::vector<Eigen::Vector3d> estimate, truth;
   std::vector<slam::TrajectoryEntry> tracked;
+  // Poses in maps never merged into the final one are in other worlds: counted, not evaluated.
   for (const slam::TrajectoryEntry& entry : system.Trajectory()) {
-    if (!HasPose(entry.state) || entry.seq < 0 ||
+    if (!HasPose(entry.state) || entry.map_id != stats.current_map || entry.seq < 0 ||
         entry.seq >= static_cast<int64_t>(ground_truth.size())) {
       continue;
     }
@@ -107,16 +109,19 @@ void Evaluate(const Scene& scene, const Trajectory& ground_truth, slam::System& 
   estimate.clear();
   truth.clear();
   for (const slam::TrackResult& r : results) {
-    if (!HasPose(r.state) || r.seq < 0 || r.seq >= static_cast<int64_t>(ground_truth.size()))
+    if (!HasPose(r.state) || r.map_id != stats.current_map || r.seq < 0 ||
+        r.seq >= static_cast<int64_t>(ground_truth.size())) {
       continue;
+    }
     estimate.push_back(r.world_from_camera.translation());
     truth.push_back(ground_truth[r.seq].world_from_camera.translation());
   }
   if (const std::optional<Alignment> online = AlignTrajectory(estimate, truth)) {
     m->ate_online_rmse_m = online->rmse;
   }
-  const slam::SystemStats stats = system.Stats();
   m->skipped = static_cast<int>(stats.frames_dropped_queue);
+  m->maps = stats.maps_created;
+  m->unmerged = static_cast<int>(stats.frames_in_unmerged_maps);
   m->rejected = static_cast<int>(stats.frames_rejected);
   m->relocalisations = static_cast<int>(stats.relocalisations);
   m->loop_corrections = static_cast<int>(stats.loop_corrections);

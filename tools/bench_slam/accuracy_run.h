@@ -41,6 +41,8 @@ struct RunMetrics {
   int rejected = 0;
   int skipped = 0;  // dropped by the latest-wins queue (real-time mode)
   int relocalisations = 0;
+  int maps = 0;      // SLAM maps started (1: tracking never stayed lost)
+  int unmerged = 0;  // tracked frames in maps never merged into the final one (not in the ATE)
   int loop_corrections = 0;
   int keyframes = 0;
   int map_points = 0;

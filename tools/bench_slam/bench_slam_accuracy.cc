@@ -42,6 +42,8 @@ nlohmann::json ToJson(const RunMetrics& m) {
           {"rejected", m.rejected},
           {"skipped", m.skipped},
           {"relocalisations", m.relocalisations},
+          {"maps", m.maps},
+          {"unmerged", m.unmerged},
           {"loop_corrections", m.loop_corrections},
           {"keyframes", m.keyframes},
           {"map_points", m.map_points},

@@ -247,6 +247,7 @@ void ClientSession::OnPose(const pose_estimate_t& pose) {
   auto estimate = wire::FromMessage(pose.world_from_camera);
   record.answered = true;
   record.state = pose.state;
+  record.map_id = pose.map_id;
   record.world_from_camera = estimate ? *estimate : Pose3();
   record.num_inliers = pose.num_inliers;
   record.keyframe_created = pose.keyframe_created;

@@ -100,6 +100,15 @@ std::optional<TrajectoryEvaluation> EvaluateTracked(const Trajectory& truth,
   return std::move(*result);
 }
 
+// The SLAM map of each session's last tracked frame: poses in other maps are in other worlds.
+std::map<int64_t, int> FinalMaps(const std::vector<client::FrameRecord>& records) {
+  std::map<int64_t, int> final_map;
+  for (const auto& r : records) {
+    if (r.answered && Tracked(r.state)) final_map[r.session_id] = r.map_id;
+  }
+  return final_map;
+}
+
 // Every session of the run in the order it started, each evaluated in its own frame.
 std::vector<SessionMetrics> SummariseSessions(const std::vector<client::FrameRecord>& records,
                                               const Trajectory& truth) {
@@ -116,9 +125,14 @@ std::vector<SessionMetrics> SummariseSessions(const std::vector<client::FrameRec
     s.frames_lost += r.state == pose_estimate_t::STATE_LOST;
     s.frames_tracked += Tracked(r.state);
   }
+  const std::map<int64_t, int> final_map = FinalMaps(records);
   for (SessionMetrics& s : sessions) {
     std::vector<TimedPose> poses;
     for (const auto& r : TrackedFrames(records, s.id)) {
+      if (r.map_id != final_map.at(s.id)) {
+        ++s.frames_in_unmerged_maps;
+        continue;
+      }
       poses.push_back({Seconds(r.capture_time_us), r.world_from_camera});
     }
     auto estimate = MakeTrajectory(poses);
@@ -195,8 +209,9 @@ Expected<RunMetrics> WriteRunOutputs(const std::string& out_dir,
   auto truth = MakeTrajectory(truth_poses);
   if (!truth) return Status::Error("ground truth: " + truth.error());
   std::vector<TimedPose> estimate_poses;
+  const std::map<int64_t, int> final_map = FinalMaps(records);
   for (const auto& r : records) {
-    if (r.answered && Tracked(r.state)) {
+    if (r.answered && Tracked(r.state) && r.map_id == final_map.at(r.session_id)) {
       estimate_poses.push_back({Seconds(r.capture_time_us), r.world_from_camera});
     }
   }
@@ -223,6 +238,9 @@ Expected<RunMetrics> WriteRunOutputs(const std::string& out_dir,
     }
   }
   m.sessions = SummariseSessions(records, *truth);
+  for (const SessionMetrics& session : m.sessions) {
+    m.frames_in_unmerged_maps += session.frames_in_unmerged_maps;
+  }
   for (const SessionMetrics& session : m.sessions) {
     if (session.id != map.session_id || !session.world_from_estimate) continue;
     // The map is in the frame of its session.
@@ -264,6 +282,7 @@ Expected<RunMetrics> WriteRunOutputs(const std::string& out_dir,
   j["frames_skipped_client"] = info.frames_skipped_client;
   j["frames_lost"] = m.frames_lost;
   j["frames_tracked"] = m.frames_tracked;
+  j["frames_in_unmerged_maps"] = m.frames_in_unmerged_maps;
   j["ate_rmse"] = m.ate_rmse;
   j["ate_scale"] = m.ate_scale;
   j["map_rmse"] = m.map_rmse;
@@ -292,6 +311,7 @@ Expected<RunMetrics> WriteRunOutputs(const std::string& out_dir,
                         {"frames_processed", session.frames_processed},
                         {"frames_tracked", session.frames_tracked},
                         {"frames_lost", session.frames_lost},
+                        {"frames_in_unmerged_maps", session.frames_in_unmerged_maps},
                         {"ate_rmse", session.ate_rmse}});
   }
   j["session_list"] = sessions;
@@ -303,11 +323,11 @@ std::string SummaryLine(const RunMetrics& m, const std::string& out_dir) {
   std::ostringstream line;
   line << std::fixed << std::setprecision(3) << "frames " << m.frames_processed << "/"
        << m.frames_total << " processed (" << m.frames_skipped << " skipped, " << m.frames_lost
-       << " lost), ATE " << m.ate_rmse * 1e3 << " mm, map error " << m.map_rmse * 1e3 << " mm, "
-       << m.keyframes << " keyframes, " << m.map_points << " points, latency p50 "
-       << std::setprecision(2) << m.latency_ms_p50 << " ms p99 " << m.latency_ms_p99
-       << " ms, tracking p50 " << m.tracking_ms_p50 << " ms, " << m.bytes_per_feature
-       << " B/feature, " << m.projector << " projector -> " << out_dir;
+       << " lost, " << m.frames_in_unmerged_maps << " in unmerged maps), ATE " << m.ate_rmse * 1e3
+       << " mm, map error " << m.map_rmse * 1e3 << " mm, " << m.keyframes << " keyframes, "
+       << m.map_points << " points, latency p50 " << std::setprecision(2) << m.latency_ms_p50
+       << " ms p99 " << m.latency_ms_p99 << " ms, tracking p50 " << m.tracking_ms_p50 << " ms, "
+       << m.bytes_per_feature << " B/feature, " << m.projector << " projector -> " << out_dir;
   return line.str();
 }
 

@@ -4,13 +4,14 @@
 //   m2s_xr_client [--config FILE.json] [--mesh FILE] [--on-device | --lcm-url URL]
 //                 [--projector gpu|cpu] [--width W --height H --fov-deg F] [--stage]
 //                 [--frames N] [--events reset@N,overlay@N,quit@N] [--keys]
-//                 [--no-overlay] [--no-mesh] [--budget N] [--noise-px S] [--seed N]
+//                 [--no-overlay] [--no-mesh] [--no-occlusion] [--budget N] [--noise-px S] [--seed
+//                 N]
 //                 [--key-file FILE [--encrypt]] [--out DIR]
 //
 // The JSON config (the file a headset build reads from its storage) has the same settings:
 //   {"mesh": "", "transport": "on-device" | "lcm", "lcm_url": "udpm://...?ttl=0",
 //    "key_file": "/path/to/bus.key", "encrypt": false,
-//    "projector": "gpu", "camera": {"width": 640, "height": 480, "fov_deg": 90},
+//    "projector": "gpu", "occlusion": true, "camera": {"width": 640, "height": 480, "fov_deg": 90},
 //    "stage": false, "frames": 0, "events": "", "overlay": true, "mesh_visible": true,
 //    "out": "out"}
 // Flags given on the command line override the file.
@@ -49,6 +50,8 @@ bool ApplyConfig(const std::string& path, XrClientOptions* options, std::string*
     *key_file = j.value("key_file", *key_file);
     *encrypt = j.value("encrypt", *encrypt);
     options->projector = j.value("projector", options->projector);
+    options->projector_options.occlusion =
+        j.value("occlusion", options->projector_options.occlusion);
     if (j.contains("camera")) {
       const auto& c = j.at("camera");
       options->camera = m2s::Camera::FromHorizontalFov(
@@ -89,6 +92,10 @@ int main(int argc, char** argv) {
   app.add_flag("--keys", keys, "read r (reset) / o (overlay) / q (quit) from stdin");
   auto* overlay_flag = app.add_flag("--no-overlay", no_overlay, "start with the overlay off");
   auto* mesh_flag = app.add_flag("--no-mesh", no_mesh, "do not draw the scene mesh");
+  bool no_occlusion = false;
+  auto* occlusion_flag = app.add_flag(
+      "--no-occlusion", no_occlusion,
+      "project every vertex in view, hidden ones too (the paper's setting; default: occlusion)");
   auto* out_flag = app.add_option("--out", out, "output folder (default out)");
   m2s::FeatureNoiseOptions noise;
   int budget = 0;
@@ -134,6 +141,7 @@ int main(int argc, char** argv) {
   if (*events_flag) event_text = events;
   if (*overlay_flag) options.overlay = false;
   if (*mesh_flag) options.draw_mesh = false;
+  if (*occlusion_flag) options.projector_options.occlusion = false;
   if (*out_flag) options.out_dir = out;
   options.stdin_keys = keys;
   options.noise = noise;

@@ -374,8 +374,9 @@ Expected<session_control_t> DecodeSessionControl(const void* data, size_t size) 
 
 Expected<pose_estimate_t> DecodePoseEstimate(const void* data, size_t size) {
   auto m = DecodeChecked<pose_estimate_t>(data, size, [](Reader* r) {
-    // version, 5 int64, state, pose, 2 int32, keyframe_created, tracking_ms, map_revision.
-    return r->Skip(2 + 5 * 8 + 1 + kPoseBytes + 2 * 4 + 1 + 4 + 8);
+    // version, 5 int64, state, pose, 2 int32, keyframe_created, tracking_ms, map_revision,
+    // map_id.
+    return r->Skip(2 + 5 * 8 + 1 + kPoseBytes + 2 * 4 + 1 + 4 + 8 + 4);
   });
   if (!m) return m;
   if (!AllFinite(m->world_from_camera.t, 3) || !AllFinite(m->world_from_camera.q, 4)) {

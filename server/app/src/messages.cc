@@ -48,6 +48,7 @@ pose_estimate_t ToPoseMessage(const slam::TrackResult& result, const wire::Featu
   m.keyframe_created = result.keyframe_created;
   m.tracking_ms = static_cast<float>(result.tracking_ms);
   m.map_revision = map_revision;
+  m.map_id = result.map_id;
   return m;
 }
 

@@ -303,9 +303,13 @@ TEST(WireFormatTest, PoseEstimateHasItsExactSize) {
   pose_estimate_t pose{};
   pose.version = pose_estimate_t::VERSION;
   pose.world_from_camera = ToMessage(Pose3());
+  pose.map_id = 7;
   std::vector<uint8_t> bytes = Encode(pose);
-  ASSERT_EQ(bytes.size(), 128u);
-  ASSERT_TRUE(DecodePoseEstimate(bytes.data(), bytes.size()).ok());
+  // 8 (type hash) + 2 + 5 * 8 + 1 + 7 * 8 (pose) + 2 * 4 + 1 + 4 + 8 + 4 (map_id).
+  ASSERT_EQ(bytes.size(), 132u);
+  const auto decoded = DecodePoseEstimate(bytes.data(), bytes.size());
+  ASSERT_TRUE(decoded.ok()) << decoded.error();
+  EXPECT_EQ(decoded->map_id, 7);
   for (size_t n = 0; n < bytes.size(); ++n) {
     EXPECT_EQ(DecodePoseEstimate(bytes.data(), n).reason(), DropReason::kBadBytes) << n;
   }

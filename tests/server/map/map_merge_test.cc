@@ -5,6 +5,8 @@
 
 #include <cmath>
 #include <random>
+#include <unordered_map>
+#include <utility>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -85,7 +87,7 @@ TEST(MapMerge, MergedMapHoldsBothInOneWorld) {
   const MapData b = BuildMap(w, 100, 300, {3, 4, 5}, kBFromWorld, 0);
   const Expected<MapAlignment> aligned = AlignMaps(a, b, MapAlignmentOptions{});
   ASSERT_TRUE(aligned) << aligned.error();
-  EXPECT_EQ(MergeMapInto(&a, b, aligned->into_from_from, 10), 3);
+  EXPECT_EQ(MergeMapInto(&a, b, aligned->into_from_from, /*first_keyframe_id=*/10).size(), 3u);
   ASSERT_EQ(a.keyframes().size(), 6u);
   ASSERT_EQ(a.points().size(), 300u);
   // b's keyframes 0, 1, 2 are a's 10, 11, 12, at the true poses of keyframes 3, 4, 5.
@@ -105,6 +107,30 @@ TEST(MapMerge, MergedMapHoldsBothInOneWorld) {
                 : (i < 200 ? std::vector<KeyframeId>{0, 1, 2, 10, 11, 12}
                            : std::vector<KeyframeId>{10, 11, 12});
     EXPECT_EQ(p->observers, expected) << i;
+  }
+}
+
+TEST(MapMerge, KeepsKeyframeIdsAndCarriesLinksOfRemovedKeyframesThroughTheScale) {
+  const World w = MakeWorld();
+  MapData a = BuildMap(w, 0, 200, {0, 1, 2}, Sim3(), 0);
+  // b draws its ids from the same counter (20...): merging keeps them.
+  MapData b = BuildMap(w, 100, 300, {3, 4, 5}, kBFromWorld, 20);
+  // Keyframe 21 (true pose 4) was culled in b: its trajectory entries resolve through 20.
+  const Pose3 parent_from_camera =
+      b.keyframe(20)->world_from_camera.Inverse() * b.keyframe(21)->world_from_camera;
+  b.RemoveKeyframe(21, KeyframeLink{20, parent_from_camera});
+  const Expected<MapAlignment> aligned = AlignMaps(a, b, MapAlignmentOptions{});
+  ASSERT_TRUE(aligned) << aligned.error();
+  const auto ids = MergeMapInto(&a, b, aligned->into_from_from);
+  EXPECT_EQ(ids, (std::unordered_map<KeyframeId, KeyframeId>{{20, 20}, {21, 21}, {22, 22}}));
+  EXPECT_NE(a.keyframe(20), nullptr);
+  EXPECT_EQ(a.keyframe(21), nullptr);
+  EXPECT_NE(a.keyframe(22), nullptr);
+  for (const auto& [id, truth] : {std::pair{20, 3}, std::pair{21, 4}, std::pair{22, 5}}) {
+    const std::optional<Pose3> pose = a.ResolveKeyframePose(id);
+    ASSERT_TRUE(pose) << id;
+    EXPECT_LT((pose->translation() - w.poses[truth].translation()).norm(), 1e-10) << id;
+    EXPECT_LT(pose->rotation().angularDistance(w.poses[truth].rotation()), 1e-10) << id;
   }
 }
 

@@ -92,6 +92,22 @@ struct DriftOptions {
   Status Check() const;
 };
 
+// Never staying lost (system/slam_system.h): a map that stays lost is set aside and a new one
+// starts at once; a set-aside map merges into the current one as soon as they share enough
+// points (vertex ids: exact correspondences, so the merge is a Sim3 from the shared points).
+struct MultiMapOptions {
+  bool enabled = true;
+  // Lost for this long (frame time) with at least min_features features in each lost frame
+  // (frames that see almost nothing do not count: they cannot relocalise anywhere).
+  double new_map_after_lost_s = 0.5;
+  int min_features = 20;
+  // A merge needs this many shared points, of which this fraction fit one Sim3.
+  int merge_min_shared_points = 30;
+  double merge_min_inlier_fraction = 0.8;
+
+  Status Check() const;
+};
+
 struct Options {
   // ---- The measurement model, shared by every stage (see MeasurementModel) ----
   Camera camera;
@@ -105,8 +121,9 @@ struct Options {
   int max_features_per_frame = 200000;
   // Features may lie this far outside the image (noise) before the frame is rejected.
   double image_margin_px = 16.0;
-  // SLAM uses at most this many features of a frame: those whose vertex ids rank lowest under
-  // a fixed hash, so the subset is the same in every view and spread over the image (0: all).
+  // SLAM uses at most this many features of a frame, spread over the image by the balanced
+  // selection (common/feature_rank.h: a grid, the id rank deciding within each cell), so the
+  // same vertices stay selected from view to view (0: all).
   // Tracking and mapping cost scale with it; accuracy barely does (docs/RESULTS.md).
   int feature_budget = 2000;
   // Capacity of the latest-wins input queue used by Submit().
@@ -126,6 +143,7 @@ struct Options {
   TrackerOptions tracker;
   MapperOptions mapper;
   DriftOptions drift;
+  MultiMapOptions multi_map;
 
   MeasurementModel measurement() const {
     return {camera, pixel_sigma, min_triangulation_parallax_deg};

@@ -58,6 +58,8 @@ struct TrackResult {
   bool keyframe_created = false;
   double tracking_ms = 0.0;
   std::string reject_reason;  // set when state == kRejected
+  // The map the pose is in (TrajectoryEntry::map_id, as it was when the frame was tracked).
+  int map_id = 0;
 };
 
 struct KeyframeState {
@@ -90,6 +92,10 @@ struct TrajectoryEntry {
   Pose3 world_from_camera;  // latest estimate (refined by BA and drift correction for keyframes)
   bool is_keyframe = false;
   std::optional<Pose3> ground_truth_world_from_camera;
+  // The map the pose is expressed in. Maps are numbered from 0 in the order they start; a map
+  // merged into another takes that one's number. Poses of the current map (SystemStats::
+  // current_map) form one trajectory in one world; other numbers are maps never merged.
+  int map_id = 0;
 };
 
 struct SystemStats {
@@ -102,6 +108,13 @@ struct SystemStats {
   int64_t frames_lost = 0;
   int64_t relocalisations = 0;
   int64_t loop_corrections = 0;
+  // Multi-map: maps started (the first included), merges of a set-aside map into the current
+  // one, the current map's number, and tracked frames whose map was never merged into it
+  // (counted in frames_tracked too; their poses are in another world).
+  int maps_created = 0;
+  int64_t map_merges = 0;
+  int current_map = 0;
+  int64_t frames_in_unmerged_maps = 0;
   int keyframes = 0;
   int map_points = 0;
   uint64_t map_revision = 0;

@@ -78,6 +78,7 @@ struct FrameRecord {
   bool keyframe_created = false;
   float tracking_ms = 0.f;
   double latency_ms = 0.0;
+  int map_id = 0;  // the SLAM map the pose is in (pose_estimate_t::map_id)
 };
 
 struct ClientCounters {

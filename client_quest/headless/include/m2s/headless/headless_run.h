@@ -32,7 +32,7 @@ struct HeadlessOptions {
   std::string lcm_url = wire::kDefaultLcmUrl;
   wire::BusSecurityOptions bus;   // LCM only: key, encryption, replay checks
   std::string projector = "gpu";  // "gpu" (CPU fallback when EGL fails) or "cpu"
-  ProjectorOptions projector_options;
+  ProjectorOptions projector_options = ProjectorOptions::Occluding();
   FeatureNoiseOptions noise;
   // At most this many features a frame are sent, the lowest-ranked ids (0: all); by default
   // the SLAM feature budget, so the server gets exactly the subset it would use.

@@ -50,6 +50,10 @@ struct SessionMetrics {
   int64_t frames_processed = 0;
   int64_t frames_tracked = 0;
   int64_t frames_lost = 0;
+  // Tracked in a SLAM map other than the session's final one (a map the server started after
+  // losing track and had not merged when it sent the pose): counted as tracked, left out of
+  // ate_rmse (their poses are in another world).
+  int64_t frames_in_unmerged_maps = 0;
   double ate_rmse = -1.0;  // metres, Sim3-aligned; -1 when fewer than 3 tracked frames
   std::optional<Sim3> world_from_estimate;
 };
@@ -60,8 +64,10 @@ struct RunMetrics {
   int64_t frames_skipped = 0;    // never processed (skipped by the client or the server queue)
   int64_t frames_lost = 0;       // processed, state LOST
   int64_t frames_tracked = 0;    // processed, state OK or RELOCALIZED
-  // Metres: every tracked frame of every session, one Sim3 alignment (a run split over
-  // sessions in different frames shows here); -1 when fewer than 3 tracked frames.
+  int64_t frames_in_unmerged_maps = 0;  // over the sessions (SessionMetrics)
+  // Metres: every tracked frame of every session in its session's final map, one Sim3
+  // alignment (a run split over sessions in different frames shows here); -1 when fewer than 3
+  // tracked frames.
   double ate_rmse = -1.0;
   double ate_scale = 0.0;
   double map_rmse = -1.0;  // metres, map points aligned by the trajectory's Sim3

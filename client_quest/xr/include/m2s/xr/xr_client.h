@@ -52,7 +52,7 @@ struct XrClientOptions {
   std::string lcm_url = wire::kDefaultLcmUrl;
   wire::BusSecurityOptions bus;   // LCM only: key ("key_file" in the config), encryption
   std::string projector = "gpu";  // "gpu" (CPU fallback when GLES 3.1 compute fails) or "cpu"
-  ProjectorOptions projector_options;
+  ProjectorOptions projector_options = ProjectorOptions::Occluding();
   FeatureNoiseOptions noise;
   // Features sent per frame: the lowest-ranked ids (0: all); default the SLAM feature budget.
   int send_budget = slam::Options().feature_budget;

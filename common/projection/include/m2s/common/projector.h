@@ -25,6 +25,14 @@
 namespace m2s {
 
 struct ProjectorOptions {
+  // What a real camera sees: occlusion on (the apps' default; the paper's setting projects
+  // every vertex in view, `occlusion = false`).
+  static ProjectorOptions Occluding() {
+    ProjectorOptions options;
+    options.occlusion = true;
+    return options;
+  }
+
   // Remove vertices hidden behind nearer surfaces using a depth buffer of the scene triangles.
   bool occlusion = false;
   // Depth buffer resolution as a fraction of the image resolution, in (0, 1].
