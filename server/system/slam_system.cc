@@ -17,9 +17,11 @@ namespace {
 
 // Results waiting for WaitForResult(); beyond this the oldest are dropped (nobody reads them).
 constexpr size_t kResultQueueCapacity = 4096;
-// Lost this many frames in a row with a map this small: the initialisation was bad, start over.
+// Lost this many frames in a row with a map this small that tracked this few frames: the
+// initialisation was bad, start over without it.
 constexpr int kLostFramesBeforeReinit = 10;
 constexpr int kSmallMapKeyframes = 4;
+constexpr int kYoungMapFrames = 60;
 // Set-aside maps kept for merging; beyond this the one with the fewest keyframes is dropped.
 constexpr size_t kMaxSetAsideMaps = 8;
 // The joint refinement after a merge.
@@ -231,12 +233,13 @@ void SlamSystem::HandleLost(const TrackerOutput& out, const Frame& frame, size_t
   if (out.state != TrackingState::kLost) {
     lost_streak_ = 0;
     lost_since_.reset();
+    ++tracked_in_map_;
     return;
   }
   ++lost_streak_;
   if (localization_only_) return;
   const size_t keyframes = map_.Read([](const MapData& m) { return m.keyframes().size(); });
-  if (keyframes <= static_cast<size_t>(kSmallMapKeyframes)) {
+  if (keyframes <= static_cast<size_t>(kSmallMapKeyframes) && tracked_in_map_ < kYoungMapFrames) {
     // A map this young that loses track was initialised badly: start over without it.
     if (lost_streak_ >= kLostFramesBeforeReinit) {
       M2S_LOG(kWarning) << "lost right after initialisation; initialising again";
@@ -278,6 +281,7 @@ void SlamSystem::StartNewMap(bool keep) {
   initializer_.Reset();
   lost_streak_ = 0;
   lost_since_.reset();
+  tracked_in_map_ = 0;
   StartMapping();
 }
 
@@ -432,6 +436,7 @@ SystemStats SlamSystem::Stats() const {
     s = stats_;
   }
   s.frames_dropped_queue = input_.dropped();
+  s.mapping_queue = static_cast<int>(keyframes_.size());
   {
     std::lock_guard<std::mutex> t(trajectory_mutex_);
     std::lock_guard<std::mutex> m(maps_mutex_);
@@ -453,6 +458,7 @@ SystemStats SlamSystem::Stats() const {
 
 void SlamSystem::ForgetMapsLocked() {
   lost_since_.reset();
+  tracked_in_map_ = 0;
   std::lock_guard<std::mutex> t(trajectory_mutex_);
   std::lock_guard<std::mutex> m(maps_mutex_);
   set_aside_.clear();

@@ -114,6 +114,7 @@ class SlamSystem final : public System {
   bool localization_only_;
   int lost_streak_ = 0;
   std::optional<double> lost_since_;  // frame time of the first lost frame that counts
+  int tracked_in_map_ = 0;            // frames tracked in the current map
 
   std::mutex track_mutex_;
   BoundedQueue<Frame> input_;

@@ -3,8 +3,10 @@
 // merged map and one trajectory. References: the generated ground truth (Sim3-aligned ATE
 // computed by slam_sim.h, independently of the library) and the known phases of the run.
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <thread>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -66,7 +68,8 @@ struct CorridorRun {
   int lost_with_features = 0;  // lost frames that reported at least min_features features
 };
 
-CorridorRun RunCorridor(double duration_s, double noise_px, double wrong_ids, bool multi_map) {
+CorridorRun RunCorridor(double duration_s, double noise_px, double wrong_ids, bool multi_map,
+                        bool threaded_mapping = false) {
   const Scene scene = MakeCorridor();
   SimOptions sim;
   sim.fps = kFps;
@@ -78,6 +81,7 @@ CorridorRun RunCorridor(double duration_s, double noise_px, double wrong_ids, bo
   std::vector<Frame> frames = ProjectFrames(scene, MakeCorridorWalk(duration_s), camera, sim);
   Options options = DefaultOptions(camera);
   options.multi_map.enabled = multi_map;
+  options.deterministic = !threaded_mapping;
   auto system = System::Create(options);
   EXPECT_TRUE(system.ok()) << system.error();
   CorridorRun run;
@@ -86,6 +90,15 @@ CorridorRun RunCorridor(double duration_s, double noise_px, double wrong_ids, bo
       frame.features.resize(std::min<size_t>(frame.features.size(), kCutFeatures));
     }
     const TrackResult r = (*system)->Track(frame);
+    if (threaded_mapping && r.keyframe_created) {
+      // Unpaced, tracking would outrun mapping by far (no camera is that fast): let the
+      // mapping thread take the keyframe before the next frame. The keyframe's mapping, and
+      // a merge after it, still run while the next frames are tracked.
+      const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+      while ((*system)->Stats().mapping_queue > 0 && std::chrono::steady_clock::now() < deadline) {
+        std::this_thread::yield();
+      }
+    }
     if (r.state == TrackingState::kLost &&
         frame.features.size() >= static_cast<size_t>(options.multi_map.min_features)) {
       ++run.lost_with_features;
@@ -132,6 +145,21 @@ TEST(MultiMap, MergesUnderNoiseAndWrongIds) {
   EXPECT_LE(run.lost_with_features, 20);
   const AteResult ate = ComputeAte(run.trajectory);
   EXPECT_LT(ate.rmse, 0.006);  // measured 3.7 mm
+}
+
+TEST(MultiMap, MergesWithMappingInItsOwnThread) {
+  // Track() in this thread, mapping (and so the merge) in the mapping thread: the merge lands
+  // between frames at a time the run does not control.
+  const CorridorRun run = RunCorridor(/*duration_s=*/12.5, 0.0, 0.0, /*multi_map=*/true,
+                                      /*threaded_mapping=*/true);
+  EXPECT_EQ(run.stats.maps_created, 2);
+  EXPECT_EQ(run.stats.map_merges, 1);
+  EXPECT_EQ(run.stats.frames_in_unmerged_maps, 0);
+  EXPECT_LE(run.lost_with_features, 20);
+  for (const TrajectoryEntry& e : run.trajectory) {
+    if (Posed(e)) EXPECT_EQ(e.map_id, run.stats.current_map) << "frame " << e.seq;
+  }
+  EXPECT_LT(ComputeAte(run.trajectory).rmse, 1e-5);
 }
 
 TEST(MultiMap, FramesOfAMapNotYetMergedAreReportedSeparately) {

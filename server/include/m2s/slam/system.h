@@ -103,6 +103,7 @@ struct SystemStats {
   int64_t frames_processed = 0;      // frames tracking took (valid or rejected), once each
   int64_t frames_tracked = 0;        // OK or relocalised (the initialiser's reference frame too)
   int64_t frames_dropped_queue = 0;  // dropped by the latest-wins input queue
+  int mapping_queue = 0;             // keyframes waiting for the mapping thread now
   int64_t frames_rejected = 0;       // invalid frames (reasons counted below)
   int64_t features_over_budget = 0;  // valid features left out by Options::feature_budget
   int64_t frames_lost = 0;
