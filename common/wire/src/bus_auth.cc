@@ -57,11 +57,6 @@ std::vector<uint8_t> AssociatedData(std::string_view channel, const uint8_t* hea
   return ad;
 }
 
-template <typename T>
-Expected<T> Fail(DropReason reason, const std::string& message) {
-  return Expected<T>::Error(reason, message);
-}
-
 }  // namespace
 
 Expected<BusKey> BusKeyFromBytes(const void* data, size_t size) {
@@ -183,12 +178,14 @@ Expected<OpenedMessage> BusOpener::Open(std::string_view channel, const uint8_t*
     return opened;
   }
   if (size < kEnvelopeOverhead || std::memcmp(data, kMagic, sizeof(kMagic)) != 0) {
-    return Fail<OpenedMessage>(DropReason::kNotAuthenticated,
-                               "message on " + std::string(channel) + " without an envelope");
+    return Expected<OpenedMessage>::Error(
+        DropReason::kNotAuthenticated,
+        "message on " + std::string(channel) + " without an envelope");
   }
   const uint8_t* header = data;
   if (header[4] != kEnvelopeVersion || (header[5] & ~kFlagEncrypted) != 0) {
-    return Fail<OpenedMessage>(DropReason::kNotAuthenticated, "envelope version or flags unknown");
+    return Expected<OpenedMessage>::Error(DropReason::kNotAuthenticated,
+                                          "envelope version or flags unknown");
   }
   const bool encrypted = (header[5] & kFlagEncrypted) != 0;
   const uint64_t sender = GetU64(header + 6);
@@ -213,15 +210,16 @@ Expected<OpenedMessage> BusOpener::Open(std::string_view channel, const uint8_t*
         key_->bytes.data());
   }
   if (verified != 0 || sender == 0 || counter == 0) {
-    return Fail<OpenedMessage>(DropReason::kNotAuthenticated,
-                               "message on " + std::string(channel) +
-                                   " fails authentication (forged, corrupt, or another key)");
+    return Expected<OpenedMessage>::Error(
+        DropReason::kNotAuthenticated,
+        "message on " + std::string(channel) +
+            " fails authentication (forged, corrupt, or another key)");
   }
   if (options_.max_age_s > 0) {
     const double age_s =
         std::abs(static_cast<double>(now_wall_us) - static_cast<double>(sent_us)) * 1e-6;
     if (age_s > options_.max_age_s) {
-      return Fail<OpenedMessage>(
+      return Expected<OpenedMessage>::Error(
           DropReason::kStale,
           "message on " + std::string(channel) + " sent " + std::to_string(age_s) + " s from now");
     }
@@ -231,7 +229,7 @@ Expected<OpenedMessage> BusOpener::Open(std::string_view channel, const uint8_t*
     auto it = senders_.find(sender);
     if (it == senders_.end()) {
       if (!MakeRoom(now_wall_us)) {
-        return Fail<OpenedMessage>(
+        return Expected<OpenedMessage>::Error(
             DropReason::kTooManySenders,
             "sender table full (" + std::to_string(options_.max_senders) + " fresh senders)");
       }
@@ -239,9 +237,9 @@ Expected<OpenedMessage> BusOpener::Open(std::string_view channel, const uint8_t*
       it->second.seen.assign(static_cast<size_t>(options_.replay_window + 63) / 64, 0);
     }
     if (!AcceptCounter(&it->second, counter)) {
-      return Fail<OpenedMessage>(DropReason::kReplayed, "message on " + std::string(channel) +
-                                                            " from sender " +
-                                                            std::to_string(sender) + " replayed");
+      return Expected<OpenedMessage>::Error(DropReason::kReplayed,
+                                            "message on " + std::string(channel) + " from sender " +
+                                                std::to_string(sender) + " replayed");
     }
     it->second.last_wall_us = now_wall_us;
   }

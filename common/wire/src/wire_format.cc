@@ -107,11 +107,6 @@ class Reader {
   std::string error_;
 };
 
-template <typename T>
-Expected<T> Fail(DropReason reason, const std::string& message) {
-  return Expected<T>::Error(reason, message);
-}
-
 // Checks the type hash, then walks the byte layout with `layout(Reader*)` (the bytes after the
 // fingerprint; true when every length and count fits and nothing is left over), and only then
 // decodes with the generated code: lcm-gen's decoders trust lengths (a string length of
@@ -122,18 +117,19 @@ Expected<Message> DecodeChecked(const void* data, size_t size, Layout&& layout) 
   Reader reader(data, size);
   int64_t hash = 0;
   if (!reader.ReadI64(&hash)) {
-    return Fail<Message>(DropReason::kBadBytes,
-                         std::string(name) + ": message shorter than its fingerprint");
+    return Expected<Message>::Error(DropReason::kBadBytes,
+                                    std::string(name) + ": message shorter than its fingerprint");
   }
   if (hash != Message::getHash()) {
-    return Fail<Message>(DropReason::kWrongFingerprint,
-                         "fingerprint is not that of " + std::string(name));
+    return Expected<Message>::Error(DropReason::kWrongFingerprint,
+                                    "fingerprint is not that of " + std::string(name));
   }
   if (size > static_cast<size_t>(INT32_MAX)) {
-    return Fail<Message>(DropReason::kBadBytes, std::string(name) + ": message larger than 2 GiB");
+    return Expected<Message>::Error(DropReason::kBadBytes,
+                                    std::string(name) + ": message larger than 2 GiB");
   }
   if (!layout(&reader) || !reader.AtEnd()) {
-    return Fail<Message>(reader.reason(), std::string(name) + ": " + reader.error());
+    return Expected<Message>::Error(reader.reason(), std::string(name) + ": " + reader.error());
   }
   Message message;
   int consumed = -1;
@@ -143,11 +139,11 @@ Expected<Message> DecodeChecked(const void* data, size_t size, Layout&& layout) 
     consumed = -1;
   }
   if (consumed < 0 || static_cast<size_t>(consumed) != size) {
-    return Fail<Message>(DropReason::kBadBytes, std::string(name) + ": malformed bytes");
+    return Expected<Message>::Error(DropReason::kBadBytes, std::string(name) + ": malformed bytes");
   }
   if (message.version != Message::VERSION) {
-    return Fail<Message>(DropReason::kBadVersion,
-                         std::string(name) + ": version " + std::to_string(message.version));
+    return Expected<Message>::Error(DropReason::kBadVersion, std::string(name) + ": version " +
+                                                                 std::to_string(message.version));
   }
   return message;
 }
@@ -206,14 +202,15 @@ camera_t ToMessage(const Camera& camera) {
 
 Expected<Pose3> FromMessage(const pose_t& m) {
   if (!AllFinite(m.t, 3) || !AllFinite(m.q, 4)) {
-    return Fail<Pose3>(DropReason::kNonFinite, "pose has a non-finite value");
+    return Expected<Pose3>::Error(DropReason::kNonFinite, "pose has a non-finite value");
   }
   const Eigen::Quaterniond q(m.q[0], m.q[1], m.q[2], m.q[3]);
   const double norm = q.norm();
-  if (!(norm > 1e-6)) return Fail<Pose3>(DropReason::kBadBytes, "pose quaternion is zero");
+  if (!(norm > 1e-6))
+    return Expected<Pose3>::Error(DropReason::kBadBytes, "pose quaternion is zero");
   // A norm that overflows would normalise to a zero quaternion.
   if (!std::isfinite(norm)) {
-    return Fail<Pose3>(DropReason::kNonFinite, "pose quaternion norm is not finite");
+    return Expected<Pose3>::Error(DropReason::kNonFinite, "pose quaternion norm is not finite");
   }
   return Pose3(q, Eigen::Vector3d(m.t[0], m.t[1], m.t[2]));
 }
@@ -221,7 +218,7 @@ Expected<Pose3> FromMessage(const pose_t& m) {
 Expected<Camera> FromMessage(const camera_t& m) {
   const double values[] = {m.fx, m.fy, m.cx, m.cy, m.near_m, m.far_m};
   if (!AllFinite(values, 6)) {
-    return Fail<Camera>(DropReason::kNonFinite, "camera has a non-finite value");
+    return Expected<Camera>::Error(DropReason::kNonFinite, "camera has a non-finite value");
   }
   Camera camera;
   camera.width = m.width;
@@ -233,10 +230,10 @@ Expected<Camera> FromMessage(const camera_t& m) {
   camera.near = m.near_m;
   camera.far = m.far_m;
   if (Status valid = camera.Check(); !valid) {
-    return Fail<Camera>(DropReason::kBadCamera, "camera: " + valid.message());
+    return Expected<Camera>::Error(DropReason::kBadCamera, "camera: " + valid.message());
   }
   if (UvShiftFor(camera.width, camera.height) < 0) {
-    return Fail<Camera>(DropReason::kBadCamera, "camera: image larger than 65536 px");
+    return Expected<Camera>::Error(DropReason::kBadCamera, "camera: image larger than 65536 px");
   }
   return camera;
 }
@@ -362,12 +359,13 @@ Expected<session_control_t> DecodeSessionControl(const void* data, size_t size) 
   });
   if (!m) return m;
   if (m->type < session_control_t::HELLO || m->type > session_control_t::REJECTED) {
-    return Fail<session_control_t>(DropReason::kBadSessionMessage,
-                                   "session message type " + std::to_string(m->type));
+    return Expected<session_control_t>::Error(DropReason::kBadSessionMessage,
+                                              "session message type " + std::to_string(m->type));
   }
   if (m->type == session_control_t::HELLO) {
     auto camera = FromMessage(m->camera);
-    if (!camera) return Fail<session_control_t>(camera.reason(), "HELLO " + camera.error());
+    if (!camera)
+      return Expected<session_control_t>::Error(camera.reason(), "HELLO " + camera.error());
   }
   return m;
 }
@@ -380,7 +378,7 @@ Expected<pose_estimate_t> DecodePoseEstimate(const void* data, size_t size) {
   });
   if (!m) return m;
   if (!AllFinite(m->world_from_camera.t, 3) || !AllFinite(m->world_from_camera.q, 4)) {
-    return Fail<pose_estimate_t>(DropReason::kNonFinite, "pose estimate is not finite");
+    return Expected<pose_estimate_t>::Error(DropReason::kNonFinite, "pose estimate is not finite");
   }
   return m;
 }
@@ -395,12 +393,13 @@ Expected<map_delta_t> DecodeMapDelta(const void* data, size_t size) {
   if (!m) return m;
   for (const keyframe_t& kf : m->keyframes) {
     if (!AllFinite(kf.world_from_camera.t, 3) || !AllFinite(kf.world_from_camera.q, 4)) {
-      return Fail<map_delta_t>(DropReason::kNonFinite, "map delta: keyframe pose not finite");
+      return Expected<map_delta_t>::Error(DropReason::kNonFinite,
+                                          "map delta: keyframe pose not finite");
     }
   }
   for (const auto& p : m->point_xyz) {
     if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])) {
-      return Fail<map_delta_t>(DropReason::kNonFinite, "map delta: point not finite");
+      return Expected<map_delta_t>::Error(DropReason::kNonFinite, "map delta: point not finite");
     }
   }
   return m;
