@@ -14,6 +14,7 @@
 #include <fstream>
 #include <iostream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <CLI/CLI.hpp>
@@ -156,8 +157,17 @@ int main(int argc, char** argv) {
                   spec.name.c_str(), composed->scene.num_vertices(),
                   composed->scene.num_triangles(), composed->layout.obstacles.size(),
                   composed->targets.size());
+      // Parts with the same name on one line, in order of first appearance.
+      std::vector<std::pair<std::string, std::pair<int, size_t>>> groups;
       for (const m2s::bench::ComposedScene::Part& part : composed->parts) {
-        std::printf("  %-28s %8u vertices\n", part.name.c_str(), part.num_vertices);
+        auto it = std::find_if(groups.begin(), groups.end(),
+                               [&](const auto& g) { return g.first == part.name; });
+        if (it == groups.end()) it = groups.insert(groups.end(), {part.name, {0, 0}});
+        ++it->second.first;
+        it->second.second += part.num_vertices;
+      }
+      for (const auto& [name, count] : groups) {
+        std::printf("  %-24s x%-3d %8zu vertices\n", name.c_str(), count.first, count.second);
       }
       continue;
     }
