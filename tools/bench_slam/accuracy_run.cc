@@ -126,12 +126,20 @@ void Evaluate(const Scene& scene, const Trajectory& ground_truth, slam::System& 
   m->relocalisations = static_cast<int>(stats.relocalisations);
   m->loop_corrections = static_cast<int>(stats.loop_corrections);
   m->keyframes = stats.keyframes;
+  // UNMERGED-MAPS: m->frames_in_unmerged_maps = stats.frames_in_unmerged_maps; once SystemStats
+  // has the field.
   m->map_points = stats.map_points;
 }
 
 // Counts tracked / initialisation / lost frames and the Track() times from ordered results.
+// `visible[seq]` is the number of vertices in frame seq; frames after initialisation without a
+// pose count as untracked, or as untracked_few_visible below `min_visible`.
 void CountResults(const std::vector<slam::TrackResult>& results,
-                  const std::vector<double>& times_ms, RunMetrics* m) {
+                  const std::vector<double>& times_ms, const std::vector<int>& visible,
+                  int min_visible, RunMetrics* m) {
+  for (int n : visible) m->few_visible += n < min_visible ? 1 : 0;
+  m->median_visible = Percentile(std::vector<double>(visible.begin(), visible.end()), 0.5,
+                                 PercentileMethod::kFlooredRank);
   bool initialised = false;
   std::vector<double> track_ms, keyframe_ms;
   double features = 0.0;
@@ -143,8 +151,11 @@ void CountResults(const std::vector<slam::TrackResult>& results,
       ++m->tracked;
     } else if (!initialised) {
       ++m->init_frames;
-    } else if (r.state == slam::TrackingState::kLost) {
-      ++m->lost;
+    } else {
+      if (r.state == slam::TrackingState::kLost) ++m->lost;
+      const bool few = r.seq >= 0 && r.seq < static_cast<int64_t>(visible.size()) &&
+                       visible[r.seq] < min_visible;
+      ++(few ? m->untracked_few_visible : m->untracked);
     }
     const double ms = i < times_ms.size() ? times_ms[i] : r.tracking_ms;
     if (initialised && HasPose(r.state))
@@ -166,6 +177,7 @@ Expected<RunMetrics> RunAccuracy(const Scene& scene, const Sequence& sequence,
   FrameSourceOptions source_options;
   source_options.vertex_stride = config.vertex_stride;
   source_options.noise.seed = config.noise_seed;
+  source_options.occlusion = config.occlusion;
   if (config.noisy) {
     source_options.noise.pixel_noise_sigma = config.noise_px;
     source_options.noise.wrong_id_fraction = config.wrong_id_fraction;
@@ -192,12 +204,14 @@ Expected<RunMetrics> RunAccuracy(const Scene& scene, const Sequence& sequence,
   m.frames = static_cast<int>((*source)->size());
   std::vector<slam::TrackResult> results;
   std::vector<double> times_ms;
+  std::vector<int> visible((*source)->size(), 0);
   const auto start = Clock::now();
 
   if (!config.realtime) {
     slam::Frame frame;
     for (size_t i = 0; i < (*source)->size(); ++i) {
       if (Status s = (*source)->MakeFrame(i, &frame); !s) return Status::Error(s.message());
+      visible[i] = static_cast<int>(frame.features.size());
       const auto t0 = Clock::now();
       results.push_back(system.Track(frame));
       times_ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
@@ -207,6 +221,7 @@ Expected<RunMetrics> RunAccuracy(const Scene& scene, const Sequence& sequence,
     std::vector<slam::Frame> frames((*source)->size());
     for (size_t i = 0; i < frames.size(); ++i) {
       if (Status s = (*source)->MakeFrame(i, &frames[i]); !s) return Status::Error(s.message());
+      visible[i] = static_cast<int>(frames[i].features.size());
     }
     std::atomic<bool> producer_done{false};
     std::thread consumer([&] {
@@ -229,7 +244,7 @@ Expected<RunMetrics> RunAccuracy(const Scene& scene, const Sequence& sequence,
     consumer.join();
   }
   m.wall_s = std::chrono::duration<double>(Clock::now() - start).count();
-  CountResults(results, times_ms, &m);
+  CountResults(results, times_ms, visible, config.min_visible_for_lost, &m);
   Evaluate(scene, *ground_truth, system, results, config.dump_prefix, &m);
   system.Shutdown();
   return m;

@@ -25,6 +25,10 @@ struct RunConfig {
   double noise_px = 0.5;
   double wrong_id_fraction = 0.01;
   uint64_t noise_seed = 1;
+  bool occlusion = true;  // hide vertices behind the scene's triangles (projector.h)
+  // Frames without a pose after initialisation count as untracked only when at least this many
+  // vertices are visible; the others are counted apart (RunMetrics::untracked_few_visible).
+  int min_visible_for_lost = 0;
   // When set, the Sim3-aligned final trajectory and the ground truth of the tracked frames are
   // written there as TUM files (<prefix>_estimate.tum, <prefix>_truth.tum).
   std::string dump_prefix;
@@ -38,6 +42,11 @@ struct RunMetrics {
   int tracked = 0;      // frames with a pose (kOk or kRelocalized)
   int init_frames = 0;  // frames before the first tracked one
   int lost = 0;         // frames reported kLost after initialisation
+  // Frames after initialisation without a pose (any state) and with at least
+  // RunConfig::min_visible_for_lost visible vertices; those with fewer are untracked_few_visible.
+  int untracked = 0;
+  int untracked_few_visible = 0;
+  int few_visible = 0;  // frames with fewer than min_visible_for_lost visible vertices
   int rejected = 0;
   int skipped = 0;  // dropped by the latest-wins queue (real-time mode)
   int relocalisations = 0;
@@ -46,8 +55,12 @@ struct RunMetrics {
   int loop_corrections = 0;
   int keyframes = 0;
   int map_points = 0;
+  // Frames tracked in maps that are not merged into the final map (-1: not reported).
+  // UNMERGED-MAPS: filled from slam::SystemStats::frames_in_unmerged_maps once it exists.
+  int64_t frames_in_unmerged_maps = -1;
   double mean_features = 0.0;
-  double ate_rmse_m = -1.0;  // final trajectory (after BA / drift correction), Sim3 aligned
+  double median_visible = 0.0;  // visible vertices per frame (before the feature budget)
+  double ate_rmse_m = -1.0;     // final trajectory (after BA / drift correction), Sim3 aligned
   double ate_max_m = -1.0;
   double ate_online_rmse_m = -1.0;  // poses as returned by Track(), Sim3 aligned
   double map_rmse_m = -1.0;         // map points vs true vertices, with the trajectory's alignment

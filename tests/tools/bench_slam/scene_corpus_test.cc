@@ -1,0 +1,175 @@
+// The scene-diversity benchmark in small: composed scenes (scene_corpus.h) and short SLAM runs
+// on a room furnished with meshes of assimp-testmodels (tests/data/scenes/testmodels.json), for
+// head, hand-held and drone motion. Bounds are set from measured runs (Release, 4 s at 30 fps,
+// deterministic); cases that fail today carry DISABLED_ and the measured failure.
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "accuracy_run.h"
+#include "scene_corpus.h"
+
+namespace m2s::bench {
+namespace {
+
+const char kMeshRoot[] = "/usr/share/assimp/models";  // Debian's assimp-testmodels
+const std::string kManifest = std::string(M2S_SOURCE_DIR) + "/tests/data/scenes/testmodels.json";
+
+bool HaveTestModels() { return std::filesystem::exists(std::string(kMeshRoot) + "/PLY/Wuson.ply"); }
+
+TEST(SceneCorpusTest, PlacesPropsBySizePositionAndYaw) {
+  if (!HaveTestModels()) GTEST_SKIP() << "assimp-testmodels not installed";
+  SceneSpec spec;
+  spec.name = "two props";
+  spec.room_size = Eigen::Vector3d(4.0, 3.0, 2.5);
+  PropSpec table;
+  table.name = "table";
+  table.box_size = Eigen::Vector3d(1.0, 0.5, 0.7);
+  table.position = Eigen::Vector3d(0.5, -0.5, 0.0);
+  table.target = true;
+  PropSpec wuson;
+  wuson.name = "Wuson";
+  wuson.mesh = "PLY/Wuson.ply";
+  wuson.size_m = 0.4;
+  wuson.position = Eigen::Vector3d(0.5, -0.5, 0.7);
+  wuson.yaw_deg = 90.0;
+  wuson.obstacle = false;
+  spec.props = {table, wuson};
+  Expected<ComposedScene> composed = ComposeScene(spec, kMeshRoot);
+  ASSERT_TRUE(composed.ok()) << composed.error();
+
+  ASSERT_EQ(composed->parts.size(), 3u);
+  EXPECT_EQ(composed->parts[0].num_vertices, 8u);  // the room: one quad per wall
+  EXPECT_EQ(composed->parts[1].num_vertices, 8u);
+  const ComposedScene::Part& mesh = composed->parts[2];
+  EXPECT_EQ(mesh.first_vertex, 16u);
+  EXPECT_EQ(composed->scene.num_vertices(), 16u + mesh.num_vertices);
+  Eigen::AlignedBox3f bounds;
+  for (uint32_t i = mesh.first_vertex; i < mesh.first_vertex + mesh.num_vertices; ++i) {
+    bounds.extend(composed->scene.positions[i]);
+  }
+  EXPECT_NEAR(bounds.sizes().maxCoeff(), 0.4f, 1e-5f);
+  EXPECT_NEAR(bounds.min().z(), 0.7f, 1e-5f);
+  EXPECT_NEAR(bounds.center().x(), 0.5f, 1e-5f);
+  EXPECT_NEAR(bounds.center().y(), -0.5f, 1e-5f);
+
+  EXPECT_TRUE(composed->layout.room.isApprox(
+      Eigen::AlignedBox3d(Eigen::Vector3d(-2.0, -1.5, 0.0), Eigen::Vector3d(2.0, 1.5, 2.5))));
+  ASSERT_EQ(composed->layout.obstacles.size(), 1u);  // the table only
+  EXPECT_LT((composed->layout.obstacles[0].min() - Eigen::Vector2d(0.0, -0.75)).norm(), 1e-6);
+  EXPECT_LT((composed->layout.obstacles[0].max() - Eigen::Vector2d(1.0, -0.25)).norm(), 1e-6);
+  ASSERT_EQ(composed->targets.size(), 1u);
+  EXPECT_LT((composed->targets[0] - Eigen::Vector3d(0.5, -0.5, 0.35)).norm(), 1e-6);
+  for (uint32_t index : composed->scene.triangles) EXPECT_LT(index, composed->scene.num_vertices());
+}
+
+TEST(SceneCorpusTest, ReadsTheManifestAndNamesErrors) {
+  Expected<std::vector<SceneSpec>> specs = ReadSceneManifest(kManifest);
+  ASSERT_TRUE(specs.ok()) << specs.error();
+  ASSERT_EQ(specs->size(), 1u);
+  EXPECT_EQ((*specs)[0].name, "testmodels-room");
+  EXPECT_GT((*specs)[0].props.size(), 10u);
+
+  Expected<std::vector<SceneSpec>> missing = ReadSceneManifest("/nonexistent/scenes.json");
+  ASSERT_FALSE(missing.ok());
+  EXPECT_NE(missing.error().find("/nonexistent/scenes.json"), std::string::npos);
+
+  const std::string bad = testing::TempDir() + "/bad_scenes.json";
+  std::ofstream(bad) << R"({"scenes": [{"name": "x", "props": [{"box": [1, 2]}]}]})";
+  Expected<std::vector<SceneSpec>> malformed = ReadSceneManifest(bad);
+  ASSERT_FALSE(malformed.ok());
+  EXPECT_NE(malformed.error().find("[x, y, z]"), std::string::npos) << malformed.error();
+
+  SceneSpec spec;
+  spec.name = "broken";
+  PropSpec prop;
+  prop.name = "ghost";
+  prop.mesh = "no/such/mesh.obj";
+  spec.props = {prop};
+  Expected<ComposedScene> composed = ComposeScene(spec, kMeshRoot);
+  ASSERT_FALSE(composed.ok());
+  EXPECT_NE(composed.error().find("ghost"), std::string::npos) << composed.error();
+}
+
+class SceneRunTest : public testing::Test {
+ protected:
+  struct Bounds {
+    int max_init_frames;
+    int max_lost;
+    double max_ate_rmse_m;
+    double max_ate_max_m;
+  };
+
+  // Runs 4 s of `motion` at 30 fps on the testmodels room and checks the bounds.
+  static void Run(const std::string& motion, bool noisy, bool occlusion, const Bounds& bounds) {
+    if (!HaveTestModels()) GTEST_SKIP() << "assimp-testmodels not installed";
+    Expected<std::vector<SceneSpec>> specs = ReadSceneManifest(kManifest);
+    ASSERT_TRUE(specs.ok()) << specs.error();
+    Expected<ComposedScene> composed = ComposeScene(specs->front(), kMeshRoot);
+    ASSERT_TRUE(composed.ok()) << composed.error();
+    Expected<Trajectory> trajectory = MakeMotion(motion, *composed, /*seed=*/1, kDurationS);
+    ASSERT_TRUE(trajectory.ok()) << trajectory.error();
+    RunConfig config;
+    config.fps = 30.0;
+    config.noisy = noisy;
+    config.occlusion = occlusion;
+    config.min_visible_for_lost = kMinVisible;
+    Expected<RunMetrics> m = RunAccuracy(composed->scene, Sequence{motion, *trajectory}, config);
+    ASSERT_TRUE(m.ok()) << m.error();
+    EXPECT_EQ(m->frames, 121);
+    EXPECT_GT(m->median_visible, 500.0);
+    EXPECT_LE(m->init_frames, bounds.max_init_frames);
+    EXPECT_LE(m->untracked, bounds.max_lost);
+    EXPECT_GE(m->ate_rmse_m, 0.0);
+    EXPECT_LT(m->ate_rmse_m, bounds.max_ate_rmse_m);
+    EXPECT_LT(m->ate_max_m, bounds.max_ate_max_m);
+  }
+
+  static constexpr double kDurationS = 4.0;
+  static constexpr int kMinVisible = 20;
+};
+
+// Noise-free features: measured ATE RMSE 0.15 / 0.06 / 0.19 um, ATE max <= 0.5 um, no frame
+// lost, initialised after 18 / 8 / 7 frames.
+constexpr double kExactAteM = 5e-6;
+
+TEST_F(SceneRunTest, HeadNoiseFree) { Run("head", false, false, {30, 0, kExactAteM, kExactAteM}); }
+
+TEST_F(SceneRunTest, HandheldNoiseFree) {
+  Run("handheld", false, false, {30, 0, kExactAteM, kExactAteM});
+}
+
+TEST_F(SceneRunTest, DroneNoiseFree) {
+  Run("drone", false, false, {30, 0, kExactAteM, kExactAteM});
+}
+
+// Noisy features (0.5 px, 1% wrong ids): measured ATE RMSE 1.66 mm, max 10.3 mm, none lost.
+TEST_F(SceneRunTest, HandheldNoisy) { Run("handheld", true, false, {30, 0, 0.004, 0.025}); }
+
+// Fails today: ATE RMSE 71.3 mm, max 201 mm (none lost): the noisy head run is 40x worse than
+// the hand-held one; the bound is the accuracy benchmark's noisy bar (5 mm).
+TEST_F(SceneRunTest, DISABLED_HeadNoisy) { Run("head", true, false, {30, 0, 0.005, 0.025}); }
+
+// Fails today: ATE RMSE 47.3 mm, max 109 mm (none lost).
+TEST_F(SceneRunTest, DISABLED_DroneNoisy) { Run("drone", true, false, {30, 0, 0.005, 0.025}); }
+
+// Fails today: initialised from frames 0 and 1, then 86 of 121 frames lost (about 1400 vertices
+// visible per frame), ATE RMSE 57.7 mm.
+TEST_F(SceneRunTest, DISABLED_HeadNoisyOcclusion) {
+  Run("head", true, true, {30, 0, 0.005, 0.025});
+}
+
+// Fails today: ATE RMSE 47.1 mm, max 90.8 mm, 58 keyframes in 4 s (43 s of Release time).
+TEST_F(SceneRunTest, DISABLED_HandheldNoisyOcclusion) {
+  Run("handheld", true, true, {30, 0, 0.005, 0.025});
+}
+
+// Fails today: ATE RMSE 51.2 mm, max 122 mm (none lost).
+TEST_F(SceneRunTest, DISABLED_DroneNoisyOcclusion) {
+  Run("drone", true, true, {30, 0, 0.005, 0.025});
+}
+
+}  // namespace
+}  // namespace m2s::bench
