@@ -121,13 +121,11 @@ void Evaluate(const Scene& scene, const Trajectory& ground_truth, slam::System& 
   }
   m->skipped = static_cast<int>(stats.frames_dropped_queue);
   m->maps = stats.maps_created;
-  m->unmerged = static_cast<int>(stats.frames_in_unmerged_maps);
+  m->frames_in_unmerged_maps = stats.frames_in_unmerged_maps;
   m->rejected = static_cast<int>(stats.frames_rejected);
   m->relocalisations = static_cast<int>(stats.relocalisations);
   m->loop_corrections = static_cast<int>(stats.loop_corrections);
   m->keyframes = stats.keyframes;
-  // UNMERGED-MAPS: m->frames_in_unmerged_maps = stats.frames_in_unmerged_maps; once SystemStats
-  // has the field.
   m->map_points = stats.map_points;
 }
 

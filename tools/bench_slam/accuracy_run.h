@@ -50,14 +50,13 @@ struct RunMetrics {
   int rejected = 0;
   int skipped = 0;  // dropped by the latest-wins queue (real-time mode)
   int relocalisations = 0;
-  int maps = 0;      // SLAM maps started (1: tracking never stayed lost)
-  int unmerged = 0;  // tracked frames in maps never merged into the final one (not in the ATE)
+  int maps = 0;  // SLAM maps started (1: tracking never stayed lost)
   int loop_corrections = 0;
   int keyframes = 0;
   int map_points = 0;
   // Frames tracked in maps that are not merged into the final map (-1: not reported).
-  // UNMERGED-MAPS: filled from slam::SystemStats::frames_in_unmerged_maps once it exists.
-  int64_t frames_in_unmerged_maps = -1;
+  // Tracked frames in maps never merged into the final one (SystemStats): not in the ATE.
+  int64_t frames_in_unmerged_maps = 0;
   double mean_features = 0.0;
   double median_visible = 0.0;  // visible vertices per frame (before the feature budget)
   double ate_rmse_m = -1.0;     // final trajectory (after BA / drift correction), Sim3 aligned

@@ -42,27 +42,22 @@ std::string Mm(double metres) {
   return buffer;
 }
 
-// The unmerged-maps column: "-" until the SLAM library reports it (RunMetrics comment).
-std::string Unmerged(const RunMetrics& m) {
-  return m.frames_in_unmerged_maps < 0 ? "-" : std::to_string(m.frames_in_unmerged_maps);
-}
-
 void PrintHeader() {
   std::printf(
       "| scene | motion | mode | frames | visible (median) | init | tracked | lost | "
-      "few-visible untracked / frames | unmerged | KFs | ATE RMSE (mm) | ATE max (mm) | "
+      "few-visible untracked / frames | maps | unmerged | KFs | ATE RMSE (mm) | ATE max (mm) | "
       "map median (mm) | map RMSE (mm) | wall (s) |\n");
-  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
 }
 
 void PrintRow(const std::string& scene, const std::string& motion, const RunMetrics& m) {
   std::printf(
-      "| %s | %s | %s | %d | %.0f | %d | %d | %d | %d / %d | %s | %d | %s | %s | %s | %s "
+      "| %s | %s | %s | %d | %.0f | %d | %d | %d | %d / %d | %d | %lld | %d | %s | %s | %s | %s "
       "| %.1f |\n",
       scene.c_str(), motion.c_str(), m.mode.c_str(), m.frames, m.median_visible, m.init_frames,
-      m.tracked, m.untracked, m.untracked_few_visible, m.few_visible, Unmerged(m).c_str(),
-      m.keyframes, Mm(m.ate_rmse_m).c_str(), Mm(m.ate_max_m).c_str(), Mm(m.map_median_m).c_str(),
-      Mm(m.map_rmse_m).c_str(), m.wall_s);
+      m.tracked, m.untracked, m.untracked_few_visible, m.few_visible, m.maps,
+      static_cast<long long>(m.frames_in_unmerged_maps), m.keyframes, Mm(m.ate_rmse_m).c_str(),
+      Mm(m.ate_max_m).c_str(), Mm(m.map_median_m).c_str(), Mm(m.map_rmse_m).c_str(), m.wall_s);
   std::fflush(stdout);
 }
 
@@ -78,6 +73,7 @@ nlohmann::json ToJson(const std::string& scene, const std::string& motion, const
           {"lost", m.untracked},
           {"untracked_few_visible", m.untracked_few_visible},
           {"few_visible", m.few_visible},
+          {"maps", m.maps},
           {"frames_in_unmerged_maps", m.frames_in_unmerged_maps},
           {"relocalisations", m.relocalisations},
           {"keyframes", m.keyframes},

@@ -43,7 +43,7 @@ nlohmann::json ToJson(const RunMetrics& m) {
           {"skipped", m.skipped},
           {"relocalisations", m.relocalisations},
           {"maps", m.maps},
-          {"unmerged", m.unmerged},
+          {"frames_in_unmerged_maps", m.frames_in_unmerged_maps},
           {"loop_corrections", m.loop_corrections},
           {"keyframes", m.keyframes},
           {"map_points", m.map_points},
