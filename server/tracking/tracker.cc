@@ -27,6 +27,10 @@ constexpr int kRetryRounds = 10;
 // is busy.
 constexpr double kCriticalTrackedRatio = 0.5;
 constexpr int kPnpIterations = 200;
+// A view with fewer associated points than TrackerOptions::min_inliers is tracked when this
+// fraction of them, and at least kMinPoseInliers, are inliers.
+constexpr double kSparseViewInlierFraction = 0.75;
+constexpr int kMinPoseInliers = 12;
 constexpr double kPnpThresholdSigmas = 4.0;
 // Keyframes for unmapped features need some baseline (fraction of keyframe_baseline_ratio),
 // or the same features would ask for a keyframe on every frame.
@@ -195,6 +199,7 @@ void Tracker::Associate(const SortedFeatures& features, Association* a) const {
 bool Tracker::TrackWithModel(const Association& a, Pose3* camera_from_world,
                              std::vector<bool>* inlier) {
   const Pose3 prior = velocity_ * last_camera_from_world_;
+  const int required = RequiredInliers(a);
   // Solves from the motion prior on the associated points (dormant ones too or not),
   // subsampled evenly beyond TrackerOptions::max_points.
   auto solve = [&](bool skip_dormant, Pose3* pose) {
@@ -210,10 +215,10 @@ bool Tracker::TrackWithModel(const Association& a, Pose3* camera_from_world,
       points.push_back(a.points[usable[k]]);
       uvs.push_back(a.uvs[usable[k]]);
     }
-    if (static_cast<int>(points.size()) < options_.min_inliers) return false;
+    if (static_cast<int>(points.size()) < required) return false;
     const int inliers =
         SolvePoseFromPrior(model_.camera, MakePoseOptions(model_), points, uvs, prior, pose);
-    return inliers >= options_.min_inliers;
+    return inliers >= required;
   };
   // Dormant points (mapped long ago) may carry drift not yet corrected. They are left out
   // only when they disagree with the recent ones: the recent points alone can be few and
@@ -235,22 +240,23 @@ bool Tracker::TrackWithModel(const Association& a, Pose3* camera_from_world,
                                        kAgreementChi2 + kAgreementPerPoint * active_inliers);
     if (agree) {
       *camera_from_world = joint_pose;
-      return Classify(a, joint_pose, false, inlier) >= options_.min_inliers;
+      return Classify(a, joint_pose, false, inlier) >= required;
     }
     if (!active_ok) return false;
     *camera_from_world = active_pose;
-    return Classify(a, active_pose, true, inlier) >= options_.min_inliers;
+    return Classify(a, active_pose, true, inlier) >= required;
   }
   Pose3 pose;
   if (!solve(/*skip_dormant=*/false, &pose)) return false;
   *camera_from_world = pose;
-  return Classify(a, pose, false, inlier) >= options_.min_inliers;
+  return Classify(a, pose, false, inlier) >= required;
 }
 
 bool Tracker::Relocalise(const Association& a, Pose3* camera_from_world,
                          std::vector<bool>* inlier) {
   const int n = static_cast<int>(a.ids.size());
-  if (n < options_.min_inliers) return false;
+  const int required = RequiredInliers(a);
+  if (n < required) return false;
   std::vector<cv::Point3d> object;
   std::vector<cv::Point2d> image;
   for (const size_t i : EvenlySpacedIndices(a.ids.size(), kMaxPnpPoints)) {
@@ -260,7 +266,7 @@ bool Tracker::Relocalise(const Association& a, Pose3* camera_from_world,
   std::vector<int> pnp_inliers;
   const std::optional<Pose3> solved = SolvePnpRansac(
       model_.camera, kPnpThresholdSigmas * model_.pixel_sigma, object, image, &pnp_inliers);
-  if (!solved || static_cast<int>(pnp_inliers.size()) < options_.min_inliers / 2) return false;
+  if (!solved || static_cast<int>(pnp_inliers.size()) < required / 2) return false;
   Pose3 pose = *solved;
   // Refine on the PnP inliers, then classify every associated point.
   std::vector<Eigen::Vector3d> points;
@@ -271,9 +277,18 @@ bool Tracker::Relocalise(const Association& a, Pose3* camera_from_world,
   }
   const PoseOnlyResult refined =
       OptimizePose(model_.camera, MakePoseOptions(model_), points, uvs, &pose);
-  if (!pose.AllFinite() || refined.num_inliers < options_.min_inliers / 2) return false;
+  if (!pose.AllFinite() || refined.num_inliers < required / 2) return false;
   *camera_from_world = pose;
-  return Classify(a, pose, /*skip_dormant=*/false, inlier) >= options_.min_inliers;
+  return Classify(a, pose, /*skip_dormant=*/false, inlier) >= required;
+}
+
+int Tracker::RequiredInliers(const Association& a) const {
+  // Exact association has no ambiguous matches: a sparse view's pose rests on most of the
+  // points it sees, not on a fixed count it may never reach.
+  const int from_view =
+      static_cast<int>(std::ceil(kSparseViewInlierFraction * static_cast<double>(a.ids.size())));
+  return std::clamp(from_view, std::min(kMinPoseInliers, options_.min_inliers),
+                    options_.min_inliers);
 }
 
 int Tracker::Classify(const Association& a, const Pose3& camera_from_world, bool skip_dormant,

@@ -98,6 +98,9 @@ class Tracker {
   void Associate(const SortedFeatures& features, Association* a) const;
   bool TrackWithModel(const Association& a, Pose3* camera_from_world, std::vector<bool>* inlier);
   bool Relocalise(const Association& a, Pose3* camera_from_world, std::vector<bool>* inlier);
+  // Inliers a pose needs: TrackerOptions::min_inliers, or in a sparse view (fewer associated
+  // points) 75 % of them and at least 12.
+  int RequiredInliers(const Association& a) const;
   // Marks the points reprojecting within the chi-square bound; returns their number.
   int Classify(const Association& a, const Pose3& camera_from_world, bool skip_dormant,
                std::vector<bool>* inlier) const;

@@ -46,7 +46,8 @@ struct TrackerOptions {
   // Pose-only optimisation uses at most this many associated points (evenly spread over the
   // frame's ids; 0: all). Bounded tracking time on dense frames.
   int max_points = 600;
-  // A frame with fewer pose inliers than this is lost (and relocalisation needs as many).
+  // A frame with fewer pose inliers than this is lost (and relocalisation needs as many); in
+  // a sparse view with fewer associated points, 75 % of them and at least 12 suffice.
   int min_inliers = 30;
   // Keyframe when the tracked points fall below this fraction of the reference keyframe's,
   double keyframe_tracked_ratio = 0.9;
