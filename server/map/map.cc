@@ -34,7 +34,10 @@ MapDelta Map::MakeDeltaLocked(bool full) const {
     ids.reserve(data_.points().size());
     for (const auto& [id, p] : data_.points()) ids.push_back(id);
     std::sort(ids.begin(), ids.end());
-    for (const VertexId id : ids) add_point(*data_.point(id));
+    for (const VertexId id : ids) {
+      const MapPoint& p = *data_.point(id);
+      if (p.constrained) add_point(p);
+    }
     return delta;
   }
   const ChangeLog& log = data_.changes();
@@ -45,9 +48,16 @@ MapDelta Map::MakeDeltaLocked(bool full) const {
   std::vector<VertexId> ids(log.upserted_points.begin(), log.upserted_points.end());
   std::sort(ids.begin(), ids.end());
   for (const VertexId id : ids) {
-    if (const MapPoint* p = data_.point(id)) add_point(*p);
+    const MapPoint* p = data_.point(id);
+    if (p != nullptr && p->constrained) add_point(*p);
   }
   delta.removed_points.assign(log.removed_points.begin(), log.removed_points.end());
+  // A point that is no longer well constrained leaves the clients' maps (removing one a client
+  // never received is harmless).
+  for (const VertexId id : log.hidden_points) {
+    const MapPoint* p = data_.point(id);
+    if (p != nullptr && !p->constrained) delta.removed_points.push_back(id);
+  }
   std::sort(delta.removed_points.begin(), delta.removed_points.end());
   return delta;
 }

@@ -62,9 +62,12 @@ class Map {
   KeyframeId NextKeyframeId();
   uint64_t revision() const;
 
-  // Changes since the previous TakeDelta() (a full delta after Clear() or Load()).
+  // Changes since the previous TakeDelta() (a full delta after Clear() or Load()). Deltas show
+  // only well-constrained points (MapPoint::constrained): a point that stops being one is
+  // listed as removed.
   MapDelta TakeDelta();
-  // The whole map (base_revision 0, full); leaves TakeDelta() undisturbed.
+  // The whole map (base_revision 0, full; well-constrained points only); leaves TakeDelta()
+  // undisturbed.
   MapDelta FullDelta() const;
 
   // Forgets everything; the next delta is full.

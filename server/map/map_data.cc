@@ -134,6 +134,21 @@ void MapData::SetPointPosition(VertexId id, const Eigen::Vector3d& position) {
   changes_.upserted_points.insert(id);
 }
 
+void MapData::SetPointUncertainty(VertexId id, double uncertainty, bool constrained) {
+  auto it = points_.find(id);
+  if (it == points_.end()) return;
+  it->second.uncertainty = uncertainty;
+  if (it->second.constrained == constrained) return;
+  ++mutation_count_;
+  it->second.constrained = constrained;
+  if (constrained) {
+    changes_.hidden_points.erase(id);
+    changes_.upserted_points.insert(id);
+  } else {
+    changes_.hidden_points.insert(id);
+  }
+}
+
 void MapData::RemovePoint(VertexId id) {
   ++mutation_count_;
   auto it = points_.find(id);
@@ -144,6 +159,7 @@ void MapData::RemovePoint(VertexId id) {
   }
   points_.erase(it);
   changes_.upserted_points.erase(id);
+  changes_.hidden_points.erase(id);
   changes_.removed_points.insert(id);
 }
 
@@ -182,6 +198,7 @@ void MapData::Clear() {
   for (const auto& [id, p] : points_) changes_.removed_points.insert(id);
   changes_.upserted_keyframes.clear();
   changes_.upserted_points.clear();
+  changes_.hidden_points.clear();
   keyframes_.clear();
   points_.clear();
   feature_index_.clear();

@@ -48,6 +48,14 @@ struct MapPoint {
   // The keyframe that created the point: drift correction moves the point with it.
   KeyframeId reference_keyframe = 0;
   std::vector<KeyframeId> observers;  // sorted ascending
+  // Relative uncertainty (mapping/point_uncertainty.h): the standard deviation of the position
+  // along its least constrained direction over its mean depth, at the measurement model's pixel
+  // noise; negative while unknown (a point not yet evaluated, or read from a version-1 file).
+  double uncertainty = -1.0;
+  // Well constrained (uncertainty within MapperOptions::max_point_uncertainty and every
+  // observation agreeing, or unknown): only such points are sent to clients (and, with
+  // TrackerOptions::min_constrained_points, solve tracked poses).
+  bool constrained = true;
   KeyframeId last_observer() const { return observers.empty() ? 0 : observers.back(); }
 };
 
@@ -64,9 +72,11 @@ struct ChangeLog {
   std::set<KeyframeId> removed_keyframes;
   std::unordered_set<VertexId> upserted_points;
   std::unordered_set<VertexId> removed_points;
+  // Points that stopped being well constrained: clients drop them.
+  std::unordered_set<VertexId> hidden_points;
   bool empty() const {
     return upserted_keyframes.empty() && removed_keyframes.empty() && upserted_points.empty() &&
-           removed_points.empty();
+           removed_points.empty() && hidden_points.empty();
   }
   void Clear() { *this = ChangeLog(); }
 };
@@ -97,6 +107,9 @@ class MapData {
   // Adds a point without observers (replaces nothing: the id must be new).
   void AddPoint(VertexId id, const Eigen::Vector3d& position, KeyframeId reference_keyframe);
   void SetPointPosition(VertexId id, const Eigen::Vector3d& position);
+  // Clients see a change of `constrained` (the point appears or goes); the uncertainty alone is
+  // not a mutation.
+  void SetPointUncertainty(VertexId id, double uncertainty, bool constrained);
   void RemovePoint(VertexId id);
   // Observation of point `id` by keyframe `kf` (which must have a feature with that id).
   bool AddObservation(VertexId id, KeyframeId kf);

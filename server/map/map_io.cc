@@ -1,10 +1,13 @@
-// Map file format (little-endian, version 1):
+// Map file format (little-endian, version 2):
 //   magic "M2SMAP01", u32 version, camera (i32 width, height; f64 fx fy cx cy),
 //   u32 next keyframe id,
 //   u64 #keyframes, each: u32 id, i64 seq, f64 timestamp, f64[7] pose (qx qy qz qw tx ty tz),
 //                   u64 #features, each: u32 vertex id, f64 u, f64 v
 //   u64 #points, each: u32 id, f64[3] position, u32 reference keyframe,
+//                f64 relative uncertainty, u8 constrained (0 or 1),
 //                u64 #observers, each: u32 keyframe id
+//   Version 1 (read too) has no uncertainty and no flag: its points load as unknown and
+//   constrained, the way they were shown when it was written, until mapping re-evaluates them.
 //   u64 #links, each: u32 id, u32 parent, f64[7] parent_from_camera
 //   magic "M2SEND01"
 #include <algorithm>
@@ -24,13 +27,14 @@ namespace {
 
 constexpr char kMagic[8] = {'M', '2', 'S', 'M', 'A', 'P', '0', '1'};
 constexpr char kEndMagic[8] = {'M', '2', 'S', 'E', 'N', 'D', '0', '1'};
-constexpr uint32_t kVersion = 1;
+constexpr uint32_t kVersion = 2;
+constexpr uint32_t kOldestReadableVersion = 1;
 // The fewest bytes each counted element takes in the file: a count is checked against them
 // and the bytes that remain before anything is allocated for it.
 constexpr size_t kPoseFileBytes = 7 * 8;
 constexpr size_t kMinKeyframeBytes = 4 + 8 + 8 + kPoseFileBytes + 8;
 constexpr size_t kFeatureBytes = 4 + 8 + 8;
-constexpr size_t kMinPointBytes = 4 + 3 * 8 + 4 + 8;
+constexpr size_t kMinPointBytes = 4 + 3 * 8 + 4 + 8;  // version 1; version 2 adds 8 + 1
 constexpr size_t kObserverBytes = 4;
 constexpr size_t kLinkBytes = 4 + 4 + kPoseFileBytes;
 
@@ -120,9 +124,9 @@ ParsedMap ParseMapFile(const void* bytes, size_t size, const Camera& camera) {
   if (!r.GetMagic(kMagic)) return Fail("not a Mesh2SLAM map");
   uint32_t version = 0;
   if (!r.Get(&version)) return Fail("truncated header");
-  if (version != kVersion) {
+  if (version < kOldestReadableVersion || version > kVersion) {
     return Fail("unsupported version " + std::to_string(version) + " (expected " +
-                std::to_string(kVersion) + ")");
+                std::to_string(kOldestReadableVersion) + " to " + std::to_string(kVersion) + ")");
   }
   int32_t width = 0, height = 0;
   double k[4];
@@ -180,11 +184,20 @@ ParsedMap ParseMapFile(const void* bytes, size_t size, const Camera& camera) {
     if (!r.Get(&id) || !r.Get(&pos[0]) || !r.Get(&pos[1]) || !r.Get(&pos[2]) || !r.Get(&ref)) {
       return Fail("truncated point");
     }
+    double uncertainty = -1.0;
+    uint8_t constrained = 1;
+    if (version >= 2) {
+      if (!r.Get(&uncertainty) || !r.Get(&constrained)) return Fail("truncated point");
+      if (std::isnan(uncertainty) || constrained > 1) {
+        return Fail("invalid uncertainty of point " + std::to_string(id));
+      }
+    }
     if (!r.GetCount("observer", kObserverBytes, &no, &why)) return Fail(why);
     if (!pos.allFinite() || data.point(id) != nullptr) {
       return Fail("invalid point " + std::to_string(id));
     }
     data.AddPoint(id, pos, ref);
+    data.SetPointUncertainty(id, uncertainty, constrained == 1);
     for (uint64_t o = 0; o < no; ++o) {
       uint32_t kf = 0;
       if (!r.Get(&kf)) return Fail("truncated observers");
@@ -247,6 +260,8 @@ Status Map::Save(const std::string& path, const Camera& camera) const {
     w.Put(static_cast<uint32_t>(id));
     for (int i = 0; i < 3; ++i) w.Put(p.position[i]);
     w.Put(static_cast<uint32_t>(p.reference_keyframe));
+    w.Put(p.uncertainty);
+    w.Put(static_cast<uint8_t>(p.constrained ? 1 : 0));
     w.Put(static_cast<uint64_t>(p.observers.size()));
     for (const KeyframeId kf : p.observers) w.Put(static_cast<uint32_t>(kf));
   }

@@ -7,6 +7,7 @@
 #include "m2s/common/logging.h"
 #include "m2s/common/numeric.h"
 #include "mapping/keyframe_culling.h"
+#include "mapping/point_uncertainty.h"
 #include "optimization/problems.h"
 
 namespace m2s::slam {
@@ -49,6 +50,7 @@ void LocalMapper::InsertInitialMap(const InitialMap& initial, KeyframeId first, 
       m.AddObservation(initial.point_ids[i], first);
       m.AddObservation(initial.point_ids[i], second);
     }
+    UpdateUncertainty(initial.point_ids, &m);
   });
   std::lock_guard<std::mutex> lock(stats_mutex_);
   stats_.points_created += static_cast<int64_t>(initial.point_ids.size());
@@ -78,6 +80,7 @@ bool LocalMapper::InsertKeyframe(const KeyframeCandidate& c) {
     kf.uvs = c.features.uvs;
     m.AddKeyframe(std::move(kf));
     for (const VertexId id : c.tracked_points) m.AddObservation(id, c.id);
+    UpdateUncertainty(c.tracked_points, &m);
   });
   return true;
 }
@@ -98,6 +101,7 @@ bool LocalMapper::CheckDrift(const KeyframeCandidate& c) {
   if (outcome != DriftOutcome::kDeferred) {
     map_->Write([&](MapData& m) {
       for (const VertexId id : c.dormant_points) m.AddObservation(id, c.id);
+      UpdateUncertainty(c.dormant_points, &m);
     });
   } else {
     M2S_LOG(kDebug) << "drift check at keyframe " << c.id << ": " << ToString(outcome) << "; "
@@ -192,10 +196,14 @@ void LocalMapper::TriangulateNewPoints(KeyframeId kf_id) {
     if (np.observers.size() >= 2) created.push_back(std::move(np));
   }
   map_->Write([&](MapData& m) {
+    std::vector<VertexId> ids;
+    ids.reserve(created.size());
     for (const NewPoint& np : created) {
       m.AddPoint(np.id, np.position, kf_id);
       for (const KeyframeId o : np.observers) m.AddObservation(np.id, o);
+      ids.push_back(np.id);
     }
+    UpdateUncertainty(ids, &m);
   });
   RecentPoints recent{kf_id, {}};
   for (const NewPoint& np : created) {
@@ -304,11 +312,15 @@ void LocalMapper::RetriangulatePoints(const std::vector<VertexId>& ids,
     if (q) updated.emplace_back(job.id, *q);
   }
   map_->Write([&](MapData& m) {
+    std::vector<VertexId> changed;
+    changed.reserve(updated.size());
     for (const auto& [id, q] : updated) {
       if (m.point(id) == nullptr) continue;  // culled meanwhile
       m.SetPointPosition(id, q);
       if (new_view && m.keyframe(*new_view) != nullptr) m.AddObservation(id, *new_view);
+      changed.push_back(id);
     }
+    UpdateUncertainty(changed, &m);
   });
   if (new_view) {
     std::lock_guard<std::mutex> lock(stats_mutex_);
@@ -347,6 +359,10 @@ void LocalMapper::ApplyBundleAdjustment(const BaProblem& problem,
         centers.push_back(m.keyframe(o)->world_from_camera.translation());
       if (!HasParallax(mp->position, centers, checks_.min_parallax_deg)) m.RemovePoint(p.id);
     }
+    std::vector<VertexId> ids;
+    ids.reserve(problem.points.size());
+    for (const BaPoint& p : problem.points) ids.push_back(p.id);
+    UpdateUncertainty(ids, &m);
   });
 }
 
@@ -361,6 +377,12 @@ void LocalMapper::GlobalBundleAdjust(int max_iterations, int max_points) {
   SolveAndApply(&problem, window.rest, max_iterations);
   std::lock_guard<std::mutex> lock(stats_mutex_);
   ++stats_.global_bundle_adjustments;
+}
+
+void LocalMapper::UpdateUncertainty(const std::vector<VertexId>& ids, MapData* m) const {
+  const PointGate gate{model_.pixel_sigma, options_.max_point_uncertainty,
+                       checks_.max_reprojection_px};
+  UpdatePointUncertainty(model_.camera, gate, ids, m);
 }
 
 void LocalMapper::CullRecentPoints() {
@@ -387,16 +409,24 @@ void LocalMapper::CullKeyframes(KeyframeId kf_id) {
     // now would keep a rigid link measured before that (the frames tracked against it with it).
     if (IsYoungMap(m)) return;
     // One at a time: each removal changes what the next candidate's points are seen by.
-    for (const KeyframeId id : CullingCandidates(m, kf_id, options_)) {
-      if (!IsRedundant(m, id, options_)) continue;
+    // The points of a culled keyframe lose an observer: their uncertainty grows.
+    std::vector<VertexId> touched;
+    auto cull = [&](KeyframeId id) {
+      const Keyframe* kf = m.keyframe(id);
+      if (kf != nullptr) touched.insert(touched.end(), kf->ids.begin(), kf->ids.end());
       CullKeyframe(&m, id);
       ++culled;
+    };
+    for (const KeyframeId id : CullingCandidates(m, kf_id, options_)) {
+      if (IsRedundant(m, id, options_)) cull(id);
     }
     // Bounded map: beyond max_keyframes, the oldest keyframes (but the first) go.
     while (const std::optional<KeyframeId> oldest = OldestBeyondBound(m, kf_id, options_)) {
-      CullKeyframe(&m, *oldest);
-      ++culled;
+      cull(*oldest);
     }
+    std::sort(touched.begin(), touched.end());
+    touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
+    UpdateUncertainty(touched, &m);
   });
   if (culled > 0) {
     std::lock_guard<std::mutex> lock(stats_mutex_);

@@ -85,6 +85,9 @@ class LocalMapper {
   double SolveAndApply(BaProblem* problem, const std::vector<VertexId>& rest, int max_iterations);
   // Applies a solved BA problem: poses, positions, outlier observations, unsupported points.
   void ApplyBundleAdjustment(const BaProblem& problem, const BundleAdjustmentResult& result);
+  // Re-evaluates which of the points `ids` are well constrained (inside map_->Write; every
+  // change of a point's position, observers or observers' poses goes through it).
+  void UpdateUncertainty(const std::vector<VertexId>& ids, MapData* m) const;
 
   MeasurementModel model_;
   MapperOptions options_;

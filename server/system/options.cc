@@ -56,6 +56,7 @@ Status TrackerOptions::Check() const {
   if (!Positive(keyframe_max_interval_s)) {
     return Fail(kName, "keyframe_max_interval_s must be positive");
   }
+  if (min_constrained_points < 0) return Fail(kName, "min_constrained_points must be >= 0");
   return Status::Ok();
 }
 
@@ -68,6 +69,10 @@ Status MapperOptions::Check() const {
     return Fail(kName, "keyframe_redundancy must be in (0, 1]");
   }
   if (max_keyframes < 2) return Fail(kName, "max_keyframes must be at least 2");
+  // +inf shows every point; NaN would hide them all.
+  if (!Positive(max_point_uncertainty)) {
+    return Fail(kName, "max_point_uncertainty must be positive");
+  }
   return Status::Ok();
 }
 

@@ -178,6 +178,7 @@ void Tracker::Associate(const SortedFeatures& features, Association* a) const {
       a->uvs.push_back(features.uvs[i]);
       a->dormant.push_back(dormant);
       a->num_dormant += dormant ? 1 : 0;
+      a->constrained.push_back(p->constrained);
     }
     if (reference_kf_) {
       if (const Keyframe* kf = m.keyframe(*reference_kf_)) {
@@ -196,6 +197,19 @@ void Tracker::Associate(const SortedFeatures& features, Association* a) const {
   });
 }
 
+std::vector<size_t> Tracker::PoseSolvingPoints(const Association& a, bool skip_dormant) const {
+  std::vector<size_t> all, constrained;
+  all.reserve(a.ids.size());
+  for (size_t i = 0; i < a.ids.size(); ++i) {
+    if (skip_dormant && a.dormant[i]) continue;
+    all.push_back(i);
+    if (a.constrained[i]) constrained.push_back(i);
+  }
+  const int enough = options_.min_constrained_points;
+  if (enough > 0 && static_cast<int>(constrained.size()) >= enough) return constrained;
+  return all;
+}
+
 bool Tracker::TrackWithModel(const Association& a, Pose3* camera_from_world,
                              std::vector<bool>* inlier) {
   const Pose3 prior = velocity_ * last_camera_from_world_;
@@ -203,11 +217,7 @@ bool Tracker::TrackWithModel(const Association& a, Pose3* camera_from_world,
   // Solves from the motion prior on the associated points (dormant ones too or not),
   // subsampled evenly beyond TrackerOptions::max_points.
   auto solve = [&](bool skip_dormant, Pose3* pose) {
-    std::vector<size_t> usable;
-    usable.reserve(a.ids.size());
-    for (size_t i = 0; i < a.ids.size(); ++i) {
-      if (!(skip_dormant && a.dormant[i])) usable.push_back(i);
-    }
+    const std::vector<size_t> usable = PoseSolvingPoints(a, skip_dormant);
     std::vector<Eigen::Vector3d> points;
     std::vector<Eigen::Vector2d> uvs;
     for (const size_t k :
@@ -259,7 +269,10 @@ bool Tracker::Relocalise(const Association& a, Pose3* camera_from_world,
   if (n < required) return false;
   std::vector<cv::Point3d> object;
   std::vector<cv::Point2d> image;
-  for (const size_t i : EvenlySpacedIndices(a.ids.size(), kMaxPnpPoints)) {
+  const std::vector<size_t> usable = PoseSolvingPoints(a, /*skip_dormant=*/false);
+  if (static_cast<int>(usable.size()) < options_.min_inliers) return false;
+  for (const size_t k : EvenlySpacedIndices(usable.size(), kMaxPnpPoints)) {
+    const size_t i = usable[k];
     object.emplace_back(a.points[i].x(), a.points[i].y(), a.points[i].z());
     image.emplace_back(a.uvs[i].x(), a.uvs[i].y());
   }

@@ -1,7 +1,10 @@
 // Frame-to-map tracking after initialisation: constant-velocity prediction, association to
 // map points by vertex id (exact), pose-only optimisation with outlier rejection, the tracking
 // state machine (ok / lost / relocalised: PnP + RANSAC against every map point seen), and the
-// keyframe decision.
+// keyframe decision. With TrackerOptions::min_constrained_points, poses are solved on the
+// well-constrained map points (MapPoint::constrained) when there are enough; every associated
+// point is classified, so a poorly constrained one that fits still becomes an observation of the
+// next keyframe and gains its baseline.
 //
 // Relocalisation's PnP runs behind an OpenCV boundary: an exception OpenCV throws (degenerate
 // input) is a failed relocalisation, and the frame is lost; Track() never throws it.
@@ -91,11 +94,16 @@ class Tracker {
     std::vector<Eigen::Vector2d> uvs;
     std::vector<bool> dormant;
     int num_dormant = 0;
-    int num_new_triangulable = 0;  // unmapped features already seen by a keyframe
+    std::vector<bool> constrained;  // MapPoint::constrained
+    int num_new_triangulable = 0;   // unmapped features already seen by a keyframe
     std::optional<Pose3> reference_pose;
     int reference_points = -1;
   };
   void Associate(const SortedFeatures& features, Association* a) const;
+  // The associated points a pose is solved on (indices into `a`): the well-constrained ones
+  // when there are at least TrackerOptions::min_constrained_points (> 0) of them, else all;
+  // dormant ones left out when `skip_dormant`.
+  std::vector<size_t> PoseSolvingPoints(const Association& a, bool skip_dormant) const;
   bool TrackWithModel(const Association& a, Pose3* camera_from_world, std::vector<bool>* inlier);
   bool Relocalise(const Association& a, Pose3* camera_from_world, std::vector<bool>* inlier);
   // Inliers a pose needs: TrackerOptions::min_inliers, or in a sparse view (fewer associated

@@ -49,7 +49,9 @@ TEST(Evaluation, StatsMatchHandComputedValues) {
   EXPECT_NEAR(s.sse, 0.3, 1e-15);
   EXPECT_EQ(s.min, 0.1);
   EXPECT_EQ(s.max, 0.4);
+  EXPECT_NEAR(s.p95, 0.385, 1e-15);  // numpy.percentile(errors, 95)
   EXPECT_EQ(ComputeStats({3.0, 1.0, 2.0}).median, 2.0);
+  EXPECT_EQ(ComputeStats({7.0}).p95, 7.0);
   EXPECT_EQ(ComputeStats({}).n, 0u);
 }
 

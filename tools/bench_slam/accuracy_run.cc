@@ -86,7 +86,8 @@ void Evaluate(const Scene& scene, const Trajectory& ground_truth, slam::System& 
     m->ate_rmse_m = final_alignment->rmse;
     m->ate_max_m = final_alignment->max;
     m->scale = final_alignment->truth_from_estimate.scale();
-    const slam::MapDelta map = system.FullMap();
+    const slam::MapDelta map = system.FullMap();  // the well-constrained points
+    m->shown_points = static_cast<int>(map.point_ids.size());
     std::vector<double> errors;
     for (size_t i = 0; i < map.point_ids.size(); ++i) {
       if (map.point_ids[i] >= scene.num_vertices()) continue;
@@ -100,6 +101,7 @@ void Evaluate(const Scene& scene, const Trajectory& ground_truth, slam::System& 
       m->map_rmse_m = std::sqrt(sum / errors.size());
       m->map_median_m = Percentile(errors, 0.5, PercentileMethod::kFlooredRank);
       m->map_p90_m = Percentile(errors, 0.9, PercentileMethod::kFlooredRank);
+      m->map_p95_m = Percentile(errors, 0.95, PercentileMethod::kFlooredRank);
       m->map_far_fraction =
           static_cast<double>(std::count_if(errors.begin(), errors.end(),
                                             [](double e) { return e > kFarMapPointM; })) /
@@ -190,6 +192,10 @@ Expected<RunMetrics> RunAccuracy(const Scene& scene, const Sequence& sequence,
   if (config.feature_budget >= 0) options.feature_budget = config.feature_budget;
   if (config.init_min_parallax_deg > 0)
     options.initializer.min_parallax_deg = config.init_min_parallax_deg;
+  if (config.max_point_uncertainty > 0)
+    options.mapper.max_point_uncertainty = config.max_point_uncertainty;
+  if (config.min_constrained_points >= 0)
+    options.tracker.min_constrained_points = config.min_constrained_points;
   Expected<std::unique_ptr<slam::System>> created = slam::System::Create(options);
   if (!created) return Status::Error(created.error());
   slam::System& system = **created;

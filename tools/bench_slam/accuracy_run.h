@@ -21,6 +21,8 @@ struct RunConfig {
   int feature_budget = -1;  // slam::Options::feature_budget, the balanced selection of every
                             // visible vertex (-1: the library's default, 0: all)
   double init_min_parallax_deg = -1.0;  // Options::initializer.min_parallax_deg (-1: default)
+  double max_point_uncertainty = -1.0;  // Options::mapper.max_point_uncertainty (-1: default)
+  int min_constrained_points = -1;      // Options::tracker.min_constrained_points (-1: default)
   int vertex_stride = 1;                // use only vertices with id % vertex_stride == 0
   double noise_px = 0.5;
   double wrong_id_fraction = 0.01;
@@ -54,9 +56,9 @@ struct RunMetrics {
   int loop_corrections = 0;
   int keyframes = 0;
   int map_points = 0;
-  // Frames tracked in maps that are not merged into the final map (-1: not reported).
   // Tracked frames in maps never merged into the final one (SystemStats): not in the ATE.
   int64_t frames_in_unmerged_maps = 0;
+  int shown_points = 0;  // well-constrained map points: what clients receive and map error uses
   double mean_features = 0.0;
   double median_visible = 0.0;  // visible vertices per frame (before the feature budget)
   double ate_rmse_m = -1.0;     // final trajectory (after BA / drift correction), Sim3 aligned
@@ -65,6 +67,7 @@ struct RunMetrics {
   double map_rmse_m = -1.0;         // map points vs true vertices, with the trajectory's alignment
   double map_median_m = -1.0;
   double map_p90_m = -1.0;
+  double map_p95_m = -1.0;
   double map_far_fraction = -1.0;  // fraction of map points more than 5 cm off
   double scale = 0.0;              // Sim3 scale world_true_from_estimate
   double track_median_ms = 0.0;    // Track() wall time on non-keyframe frames

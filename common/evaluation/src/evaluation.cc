@@ -142,6 +142,10 @@ ErrorStats ComputeStats(const std::vector<double>& errors) {
   stats.max = sorted.back();
   const size_t mid = sorted.size() / 2;
   stats.median = sorted.size() % 2 == 1 ? sorted[mid] : 0.5 * (sorted[mid - 1] + sorted[mid]);
+  const double rank = 0.95 * static_cast<double>(sorted.size() - 1);
+  const size_t below = static_cast<size_t>(std::floor(rank));
+  const size_t above = std::min(below + 1, sorted.size() - 1);
+  stats.p95 = sorted[below] + (sorted[above] - sorted[below]) * (rank - static_cast<double>(below));
   return stats;
 }
 

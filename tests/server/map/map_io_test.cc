@@ -75,6 +75,94 @@ void Append(std::string* bytes, const T& value) {
   bytes->append(reinterpret_cast<const char*>(&value), sizeof(T));
 }
 
+// Populate()'s map written in version 1 of the format (no point uncertainty), by hand.
+std::string VersionOneFile(const Camera& camera) {
+  Map map;
+  Populate(&map);
+  std::string bytes = "M2SMAP01";
+  Append(&bytes, uint32_t{1});
+  Append(&bytes, int32_t{camera.width});
+  Append(&bytes, int32_t{camera.height});
+  for (double v : {camera.fx, camera.fy, camera.cx, camera.cy}) Append(&bytes, v);
+  map.Read([&](const MapData& m) {
+    Append(&bytes, uint32_t{3});  // next keyframe id
+    Append(&bytes, uint64_t{m.keyframes().size()});
+    for (const auto& [id, kf] : m.keyframes()) {
+      Append(&bytes, uint32_t{id});
+      Append(&bytes, int64_t{kf.seq});
+      Append(&bytes, kf.timestamp);
+      const Eigen::Quaterniond& q = kf.world_from_camera.rotation();
+      const Eigen::Vector3d& t = kf.world_from_camera.translation();
+      for (double v : {q.x(), q.y(), q.z(), q.w(), t.x(), t.y(), t.z()}) Append(&bytes, v);
+      Append(&bytes, uint64_t{kf.ids.size()});
+      for (size_t i = 0; i < kf.ids.size(); ++i) {
+        Append(&bytes, uint32_t{kf.ids[i]});
+        Append(&bytes, kf.uvs[i].x());
+        Append(&bytes, kf.uvs[i].y());
+      }
+    }
+    Append(&bytes, uint64_t{m.points().size()});
+    for (VertexId id = 0; id < m.points().size(); ++id) {
+      const MapPoint& p = *m.point(id);
+      Append(&bytes, uint32_t{id});
+      for (int i = 0; i < 3; ++i) Append(&bytes, p.position[i]);
+      Append(&bytes, uint32_t{p.reference_keyframe});
+      Append(&bytes, uint64_t{p.observers.size()});
+      for (const KeyframeId o : p.observers) Append(&bytes, uint32_t{o});
+    }
+  });
+  Append(&bytes, uint64_t{0});  // links
+  bytes += "M2SEND01";
+  return bytes;
+}
+
+TEST(MapIo, PointUncertaintyIsSavedAndVersionOneFilesLoadEveryPointAsShown) {
+  const Camera camera;
+  Map map;
+  Populate(&map);
+  map.Write([](MapData& m) {
+    for (VertexId v = 0; v < 15; ++v) {
+      const bool hidden = v == 3 || v == 11;
+      m.SetPointUncertainty(v, hidden ? 0.25 : 0.001 * v, !hidden);
+    }
+  });
+  const std::string path = ::testing::TempDir() + "/m2s_map_uncertainty.m2smap";
+  ASSERT_TRUE(map.Save(path, camera).ok());
+  Map loaded;
+  ASSERT_TRUE(loaded.Load(path, camera).ok());
+  std::remove(path.c_str());
+  loaded.Read([](const MapData& m) {
+    for (VertexId v = 0; v < 15; ++v) {
+      const bool hidden = v == 3 || v == 11;
+      EXPECT_EQ(m.point(v)->uncertainty, hidden ? 0.25 : 0.001 * v) << v;
+      EXPECT_EQ(m.point(v)->constrained, !hidden) << v;
+    }
+  });
+  EXPECT_EQ(loaded.FullDelta().point_ids, map.FullDelta().point_ids);
+  EXPECT_EQ(loaded.FullDelta().point_ids.size(), 13u);
+
+  const std::string old = VersionOneFile(camera);
+  Map from_old;
+  const Status s = from_old.LoadFromBytes(old.data(), old.size(), camera);
+  ASSERT_TRUE(s.ok()) << s.message();
+  from_old.Read([](const MapData& m) {
+    ASSERT_EQ(m.points().size(), 15u);
+    EXPECT_EQ(m.point(3)->observers, (std::vector<KeyframeId>{0, 1, 2}));
+    for (const auto& [id, p] : m.points()) {
+      EXPECT_LT(p.uncertainty, 0.0) << id;  // unknown
+      EXPECT_TRUE(p.constrained) << id;
+    }
+  });
+  EXPECT_EQ(from_old.FullDelta().point_ids.size(), 15u);
+
+  // A later version is refused by name.
+  std::string future = old;
+  const uint32_t version = 3;
+  std::memcpy(future.data() + 8, &version, sizeof(version));
+  const Status refused = from_old.LoadFromBytes(future.data(), future.size(), camera);
+  EXPECT_EQ(refused.message(), "bad map file: unsupported version 3 (expected 1 to 2)");
+}
+
 // The 148-byte file of the security review: a header for `camera`, a keyframe count, then one
 // keyframe (id 0, an identity pose) whose feature count is `feature_count`, and nothing else.
 std::string HugeCountFile(const Camera& camera, uint64_t keyframe_count, uint64_t feature_count) {

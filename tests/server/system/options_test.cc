@@ -51,6 +51,7 @@ TEST(Options, TrackerRules) {
   ExpectRefused<O>([](O* o) { o->keyframe_min_new_points = 0; }, "keyframe_min_new_points");
   ExpectRefused<O>([](O* o) { o->keyframe_baseline_ratio = -0.1; }, "keyframe_baseline_ratio");
   ExpectRefused<O>([](O* o) { o->keyframe_max_interval_s = kNan; }, "keyframe_max_interval_s");
+  ExpectRefused<O>([](O* o) { o->min_constrained_points = -1; }, "min_constrained_points");
   TrackerOptions all_points;
   all_points.max_points = 0;  // 0: every associated point
   EXPECT_TRUE(all_points.Check());
@@ -64,6 +65,8 @@ TEST(Options, MapperRules) {
   ExpectRefused<O>([](O* o) { o->keyframe_redundancy = 0.0; }, "keyframe_redundancy");
   ExpectRefused<O>([](O* o) { o->keyframe_redundancy = 1.01; }, "keyframe_redundancy");
   ExpectRefused<O>([](O* o) { o->max_keyframes = 1; }, "max_keyframes");
+  ExpectRefused<O>([](O* o) { o->max_point_uncertainty = 0.0; }, "max_point_uncertainty");
+  ExpectRefused<O>([](O* o) { o->max_point_uncertainty = kNan; }, "max_point_uncertainty");
 }
 
 TEST(Options, DriftRules) {

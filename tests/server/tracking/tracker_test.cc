@@ -257,6 +257,60 @@ TEST(Tracker, FramesRecordAgainstAKeyframeStillQueuedForMapping) {
   EXPECT_LT(PositionError(candidate.world_from_camera * out.reference_from_camera, second), 1e-6);
 }
 
+TEST(Tracker, PosesAreSolvedOnWellConstrainedPointsWhenThereAreEnough) {
+  // 250 well-constrained points at their true positions and 300 poorly constrained ones 4 cm
+  // off (MapPoint::constrained false). With at least min_constrained_points constrained ones the
+  // pose is the solution on those alone; with fewer (a young map) or 0, on every point.
+  Options options = TestOptions();
+  constexpr VertexId kFirstUncertainId = 1000;
+  std::mt19937 rng(5);
+  Scene scene;
+  AddPoints(options.camera, 250, 0, false, 10, 630, 10, 470, &rng, &scene);
+  AddPoints(options.camera, 300, kFirstUncertainId, false, 10, 630, 10, 470, &rng, &scene);
+  std::vector<Eigen::Vector3d> mapped = scene.true_points;
+  for (size_t i = 0; i < mapped.size(); ++i) {
+    if (scene.ids[i] >= kFirstUncertainId) mapped[i] += Eigen::Vector3d(0.04, 0.0, 0.0);
+  }
+  const Pose3 truth(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.005, 0.0, 0.002));
+  const SortedFeatures frame = Observe(scene, options.camera, truth, 0.5, &rng);
+  // OptimizePose from the identity (the tracker's prior) on the constrained points.
+  std::vector<Eigen::Vector3d> points;
+  std::vector<Eigen::Vector2d> uvs;
+  for (size_t i = 0; i < scene.ids.size(); ++i) {
+    if (scene.ids[i] >= kFirstUncertainId) continue;
+    points.push_back(mapped[i]);
+    uvs.push_back(frame.uvs[i]);
+  }
+  PoseOnlyOptions po;
+  po.pixel_sigma = options.pixel_sigma;
+  po.huber_delta_px = std::sqrt(kChi2TwoDof95) * options.pixel_sigma;
+  Pose3 constrained_from_world;
+  OptimizePose(options.camera, po, points, uvs, &constrained_from_world);
+  const Pose3 constrained = constrained_from_world.Inverse();
+  const Pose3 all = SolveOn(options, scene, mapped, frame, true, true);
+  ASSERT_GT(PositionError(all, truth), 0.01) << "the uncertain points do not pull the pose";
+  ASSERT_LT(PositionError(constrained, truth), 2e-3);
+
+  for (const int min_constrained : {250, 251, 0}) {
+    options.tracker.min_constrained_points = min_constrained;
+    Map map;
+    InsertScene(
+        scene, options.camera, [&](size_t i) { return mapped[i]; }, &map);
+    map.Write([&](MapData& m) {
+      for (const VertexId id : scene.ids) {
+        if (id >= kFirstUncertainId) m.SetPointUncertainty(id, 0.5, false);
+      }
+    });
+    Tracker tracker(options.measurement(), options.tracker, options.drift, &map);
+    tracker.Start(kReferenceKeyframe, Pose3::Identity(), 550, 0.0, 2.0);
+    const TrackerOutput out = tracker.Track(1, 0.02, frame, /*mapping_busy=*/true);
+    ASSERT_EQ(out.state, TrackingState::kOk);
+    const Pose3& expected = min_constrained == 250 ? constrained : all;
+    EXPECT_LT(PositionError(out.world_from_camera, expected), 1e-9)
+        << "min_constrained_points " << min_constrained;
+  }
+}
+
 // OpenCV's PnP asserts on fewer than four points. Only options Check() refuses (min_inliers
 // under 6) let relocalisation hand it so few; the exception must end as a lost frame.
 TEST(Tracker, AnOpenCvExceptionInRelocalisationIsALostFrame) {

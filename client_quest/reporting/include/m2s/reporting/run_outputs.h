@@ -71,6 +71,8 @@ struct RunMetrics {
   double ate_rmse = -1.0;
   double ate_scale = 0.0;
   double map_rmse = -1.0;  // metres, map points aligned by the trajectory's Sim3
+  double map_median = -1.0;
+  double map_p95 = -1.0;
   double tracking_ms_p50 = 0.0, tracking_ms_p95 = 0.0;
   double latency_ms_p50 = 0.0, latency_ms_p99 = 0.0;
   double bytes_per_feature = 0.0;

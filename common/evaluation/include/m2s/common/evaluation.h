@@ -67,7 +67,8 @@ std::vector<MatchedPair> Associate(const Trajectory& reference, const Trajectory
 
 struct ErrorStats {
   double rmse = 0.0, mean = 0.0, median = 0.0, std = 0.0, min = 0.0, max = 0.0, sse = 0.0;
-  size_t n = 0;  // all fields are 0 when n == 0
+  double p95 = 0.0;  // 95th percentile, interpolated between ranks as numpy's default
+  size_t n = 0;      // all fields are 0 when n == 0
 };
 ErrorStats ComputeStats(const std::vector<double>& errors);
 
