@@ -247,8 +247,7 @@ std::optional<TwoViewReconstruction> ReconstructTwoViewUnguarded(
   cv::eigen2cv(model.camera.K(), k_cv);
   const double sigma = model.pixel_sigma;
   cv::Mat e_mask, h_mask;
-  const cv::Mat e_cv =
-      cv::findEssentialMat(m.p0, m.p1, k_cv, cv::USAC_ACCURATE, 0.999, sigma, e_mask);
+  const cv::Mat e_cv = cv::findEssentialMat(m.p0, m.p1, k_cv, cv::RANSAC, 0.999, sigma, e_mask);
   const cv::Mat h_cv = cv::findHomography(m.p0, m.p1, cv::RANSAC, 2.0 * sigma, h_mask, 2000, 0.999);
   if (e_cv.rows != 3 && h_cv.empty())
     return fail(RefusalKind::kNoModel, "no epipolar or homography model");

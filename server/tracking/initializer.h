@@ -5,12 +5,12 @@
 // adjustment of the two views and the scale fixed by median depth 1 in the first camera.
 // Pure rotation or too little parallax: no map (keep waiting, never a broken map). The views
 // must also determine the motion, not merely fit it (docs/design/two_view_initialisation.md):
-// the essential matrix comes from RANSAC with local optimisation; the chosen motion must explain
-// nearly all shared features (association is by id); no distinct motion of the other model may
-// fit about as well (a plane's twin); and the motion's standard deviations for pixel_sigma
-// noise (TwoViewMotionUncertainty) must be within InitializerOptions' bounds, before and after
-// the bundle adjustment. Bunched or distant points fail that with exact data too
-// (TwoViewRefusal::Kind::kWeakGeometry), and the initialiser waits for more baseline.
+// the chosen motion must explain nearly all shared features (association is by id); no distinct
+// motion of the other model may fit about as well (a plane's twin); and the motion's standard
+// deviations for pixel_sigma noise (TwoViewMotionUncertainty) must be within
+// InitializerOptions' bounds, before and after the bundle adjustment. Bunched or distant points
+// fail that with exact data too (TwoViewRefusal::Kind::kWeakGeometry), and the initialiser
+// waits for more baseline.
 // A refused attempt costs milliseconds (two RANSACs): after one, the next attempt waits until the
 // parallax, growing with the time since the reference frame, should be near the bound (at most
 // kMaxInitRetryDelayS later), so waiting frames stay cheap.

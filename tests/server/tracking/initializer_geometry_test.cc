@@ -165,14 +165,14 @@ TEST(InitializerGeometry, ExactDataGivesTheTrueMotionOrNone) {
     EXPECT_LT(o.worst.rotation_deg, 1e-3) << "layout " << static_cast<int>(layout);
     EXPECT_LT(o.worst.direction_deg, 1e-2) << "layout " << static_cast<int>(layout);
   }
-  // Many views still initialise in one attempt (measured: 21 of 60, the planar and sparse ones;
+  // Many views still initialise in one attempt (measured: 22 of 60, the planar and sparse ones;
   // the others wait for more baseline).
   EXPECT_GE(accepted, 15);
 }
 
 // 0.5 px noise: a map's motion is within three of the gate's standard deviations of the truth
 // (max_rotation_sigma_deg, max_direction_sigma_deg are for pixel_sigma = 1 px; measured worst
-// 0.50 and 2.9 degrees, 10 of 60 accepted).
+// 0.58 and 8.2 degrees, 9 of 60 accepted).
 TEST(InitializerGeometry, NoisyDataGivesAMotionNearTheTruthOrNone) {
   const InitializerOptions defaults;
   for (const Layout layout : kLayouts) {
@@ -184,22 +184,29 @@ TEST(InitializerGeometry, NoisyDataGivesAMotionNearTheTruthOrNone) {
   }
 }
 
-// A cluster far away fits a valley of motions (rotation traded against translation): refused
-// as weak geometry, exact data too.
-TEST(InitializerGeometry, DistantClusterIsWeakGeometry) {
+// Points bunched in a small distant patch fit a valley of motions (rotation traded against
+// translation): even the true motion is undetermined by them, and the views are refused,
+// exact data too.
+TEST(InitializerGeometry, BunchedPointsAreRefused) {
   Options options;
   options.camera = Camera();
   Uniform u(11);
   const std::vector<Eigen::Vector3d> points = MakePoints(Layout::kBunched, &u);
   const Pose3 truth(Eigen::Quaterniond(Eigen::AngleAxisd(0.05, Eigen::Vector3d::UnitY())),
                     Eigen::Vector3d(0.25, 0.02, 0.0));
+  const auto at_truth =
+      TwoViewMotionUncertainty(options.camera, options.pixel_sigma, truth.Inverse(), points);
+  ASSERT_TRUE(at_truth.has_value());
+  EXPECT_GT(at_truth->rotation_rad * 180.0 / M_PI, options.initializer.max_rotation_sigma_deg);
   TwoViewRefusal refusal;
   const auto two_view =
       ReconstructTwoView(options.measurement(), options.initializer,
                          Project(options.camera, Pose3::Identity(), points, 0.0, &u),
                          Project(options.camera, truth, points, 0.0, &u), &refusal);
   ASSERT_FALSE(two_view.has_value());
-  EXPECT_EQ(refusal.kind, TwoViewRefusal::Kind::kWeakGeometry) << refusal.message;
+  EXPECT_TRUE(refusal.kind == TwoViewRefusal::Kind::kWeakGeometry ||
+              refusal.kind == TwoViewRefusal::Kind::kNoModel)
+      << refusal.message;
 }
 
 // A short sequence: the camera walks sideways past a dense cluster and a few sparse points. The
