@@ -37,6 +37,12 @@ Status InitializerOptions::Check() const {
   if (min_points < 8) return Fail(kName, "min_points must be at least 8");
   if (!Positive(min_parallax_deg)) return Fail(kName, "min_parallax_deg must be positive");
   if (max_reference_age < 2) return Fail(kName, "max_reference_age must be at least 2");
+  if (!Positive(max_rotation_sigma_deg)) {
+    return Fail(kName, "max_rotation_sigma_deg must be positive");
+  }
+  if (!Positive(max_direction_sigma_deg)) {
+    return Fail(kName, "max_direction_sigma_deg must be positive");
+  }
   return Status::Ok();
 }
 

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include <Eigen/Eigenvalues>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/eigen.hpp>
 
@@ -14,17 +15,26 @@
 namespace m2s::slam {
 namespace {
 
-constexpr double kHomographyRatio = 0.40;  // ORB-SLAM2: RH > 0.40 selects the homography
-constexpr double kAmbiguityRatio = 0.75;   // second best motion must explain fewer points
-constexpr double kMinGoodFraction = 0.9;   // of the model's inliers
-constexpr int kMaxMatches = 1000;          // subsampled beyond this (RANSAC cost)
-constexpr int kMotionCheckPoints = 200;    // inliers that rank the candidate motions
+constexpr double kHomographyRatio = 0.40;      // ORB-SLAM2: RH > 0.40 selects the homography
+constexpr double kAmbiguityRatio = 0.75;       // second best motion must explain fewer points
+constexpr double kMinGoodFraction = 0.9;       // of the model's inliers
+constexpr double kMinExplainedFraction = 0.9;  // of all shared features
+constexpr int kMaxMatches = 1000;              // subsampled beyond this (RANSAC cost)
+constexpr int kMotionCheckPoints = 200;        // inliers that rank the candidate motions
 // Refusals of the cheap gates, before any RANSAC (Process treats them apart).
 using RefusalKind = TwoViewRefusal::Kind;
 // After a refused attempt, retry when the parallax extrapolated linearly in time since the
 // reference reaches this fraction of the bound, and at least this often.
 constexpr double kRetryParallaxFraction = 0.8;
 constexpr double kMaxInitRetryDelayS = 0.1;
+// Two candidate motions are the same solution when they differ by less than this many times the
+// largest standard deviations the motion may have (InitializerOptions::max_*_sigma_deg).
+constexpr double kDistinctSigmas = 2.0;
+// Chi-square, 5 degrees of freedom (a relative motion), 99.9 %: a second motion whose cost is
+// within this of the best one's fits the views as well.
+constexpr double kChi2FiveDof999 = 20.52;
+
+double DegToRad(double deg) { return deg * M_PI / 180.0; }
 
 struct Matches {
   std::vector<VertexId> ids;
@@ -94,9 +104,30 @@ double ScoreFundamental(const Eigen::Matrix3d& f, const Matches& m, double sigma
   return score;
 }
 
+// The uncertainty gate of InitializerOptions (max_rotation_sigma_deg, max_direction_sigma_deg).
+bool WellDetermined(const std::optional<MotionUncertainty>& u, const InitializerOptions& options) {
+  return u && u->rotation_rad <= DegToRad(options.max_rotation_sigma_deg) &&
+         u->direction_rad <= DegToRad(options.max_direction_sigma_deg);
+}
+
+bool DistinctMotions(const Pose3& a, const Pose3& b, const InitializerOptions& options) {
+  const double rotation = RotationAngle(a.rotation().conjugate() * b.rotation());
+  const double direction = std::acos(
+      std::clamp(a.translation().normalized().dot(b.translation().normalized()), -1.0, 1.0));
+  return rotation > kDistinctSigmas * DegToRad(options.max_rotation_sigma_deg) ||
+         direction > kDistinctSigmas * DegToRad(options.max_direction_sigma_deg);
+}
+
+// A point is good for a motion when it triangulates in front of both cameras and reprojects
+// within this many sigma^2 in each view.
+constexpr double kMaxErrorSigmas2 = 4.0;
+
 struct MotionCheck {
   Pose3 camera1_from_camera0;
   int good = 0;
+  // Sum over the checked points of the squared reprojection errors in sigma^2 units, a point
+  // that is not good counting as the bound (2 kMaxErrorSigmas2).
+  double cost = 0.0;
   double median_parallax_deg = 0.0;
   std::vector<int> indices;  // into matches
   std::vector<Eigen::Vector3d> points;
@@ -111,13 +142,17 @@ MotionCheck CheckMotion(const MeasurementModel& model, const Matches& m,
   const std::vector<Pose3> poses = {Pose3::Identity(), out.camera1_from_camera0};
   const Eigen::Vector3d c0 = Eigen::Vector3d::Zero();
   const Eigen::Vector3d c1 = out.camera1_from_camera0.Inverse().translation();
-  const double max_err_sq = 4.0 * model.pixel_sigma * model.pixel_sigma;
+  const double max_err_sq = kMaxErrorSigmas2 * model.pixel_sigma * model.pixel_sigma;
+  const double inv_var = 1.0 / (model.pixel_sigma * model.pixel_sigma);
   for (const int i : inliers) {
+    out.cost += 2.0 * kMaxErrorSigmas2;  // replaced below by a good point's error
     const std::vector<Eigen::Vector2d> uv = {{m.p0[i].x, m.p0[i].y}, {m.p1[i].x, m.p1[i].y}};
     const auto p = TriangulateDlt(model.camera, poses, uv);
     if (!p) continue;
-    if (ReprojectionErrorSq(model.camera, poses[0], *p, uv[0]) > max_err_sq) continue;
-    if (ReprojectionErrorSq(model.camera, poses[1], *p, uv[1]) > max_err_sq) continue;
+    const double e0 = ReprojectionErrorSq(model.camera, poses[0], *p, uv[0]);
+    const double e1 = ReprojectionErrorSq(model.camera, poses[1], *p, uv[1]);
+    if (e0 > max_err_sq || e1 > max_err_sq) continue;
+    out.cost += (e0 + e1) * inv_var - 2.0 * kMaxErrorSigmas2;
     ++out.good;
     out.indices.push_back(i);
     out.points.push_back(*p);
@@ -126,6 +161,66 @@ MotionCheck CheckMotion(const MeasurementModel& model, const Matches& m,
   out.median_parallax_deg = Median(out.parallax);
   return out;
 }
+
+}  // namespace
+
+std::optional<MotionUncertainty> TwoViewMotionUncertainty(
+    const Camera& camera, double pixel_sigma, const Pose3& camera1_from_camera0,
+    const std::vector<Eigen::Vector3d>& points_camera0) {
+  const Eigen::Matrix3d r = camera1_from_camera0.RotationMatrix();
+  const Eigen::Vector3d t = camera1_from_camera0.translation();
+  const double baseline = t.norm();
+  if (!(baseline > 0.0) || points_camera0.size() < 3) return std::nullopt;
+  // Two unit directions across the baseline: perturbations of the direction, in radians.
+  Eigen::Vector3d e1 = t.unitOrthogonal();
+  Eigen::Vector3d e2 = t.normalized().cross(e1);
+  auto projection_jacobian = [&camera](const Eigen::Vector3d& p) {
+    Eigen::Matrix<double, 2, 3> j;
+    const double iz = 1.0 / p.z();
+    j << camera.fx * iz, 0.0, -camera.fx * p.x() * iz * iz, 0.0, camera.fy * iz,
+        -camera.fy * p.y() * iz * iz;
+    return j;
+  };
+  Eigen::Matrix<double, 5, 5> information = Eigen::Matrix<double, 5, 5>::Zero();
+  for (const Eigen::Vector3d& x : points_camera0) {
+    const Eigen::Vector3d rx = r * x;
+    const Eigen::Vector3d p1 = rx + t;
+    if (!(x.z() > 0.0) || !(p1.z() > 0.0)) continue;
+    const Eigen::Matrix<double, 2, 3> j0 = projection_jacobian(x);
+    const Eigen::Matrix<double, 2, 3> j1 = projection_jacobian(p1);
+    Eigen::Matrix<double, 3, 5> dp_dmotion;
+    Eigen::Matrix3d rx_hat;
+    rx_hat << 0.0, -rx.z(), rx.y(), rx.z(), 0.0, -rx.x(), -rx.y(), rx.x(), 0.0;
+    dp_dmotion << -rx_hat, baseline * e1, baseline * e2;
+    const Eigen::Matrix<double, 2, 5> a = j1 * dp_dmotion;
+    const Eigen::Matrix<double, 2, 3> b1 = j1 * r;
+    const Eigen::Matrix3d h_ll = j0.transpose() * j0 + b1.transpose() * b1;
+    const Eigen::Matrix<double, 5, 3> h_pl = a.transpose() * b1;
+    Eigen::LDLT<Eigen::Matrix3d> h_ll_ldlt(h_ll);
+    if (h_ll_ldlt.info() != Eigen::Success) continue;
+    information += a.transpose() * a - h_pl * h_ll_ldlt.solve(h_pl.transpose());
+  }
+  information /= pixel_sigma * pixel_sigma;
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 5, 5>> eig(information);
+  if (eig.info() != Eigen::Success || !(eig.eigenvalues().minCoeff() > 0.0)) {
+    return MotionUncertainty{INFINITY, INFINITY};
+  }
+  const Eigen::Matrix<double, 5, 5> covariance = eig.eigenvectors() *
+                                                 eig.eigenvalues().cwiseInverse().asDiagonal() *
+                                                 eig.eigenvectors().transpose();
+  MotionUncertainty out;
+  out.rotation_rad =
+      std::sqrt(Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(covariance.topLeftCorner<3, 3>())
+                    .eigenvalues()
+                    .maxCoeff());
+  out.direction_rad =
+      std::sqrt(Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(covariance.bottomRightCorner<2, 2>())
+                    .eigenvalues()
+                    .maxCoeff());
+  return out;
+}
+
+namespace {
 
 // ReconstructTwoView without the boundary that turns OpenCV's exceptions into a refusal.
 std::optional<TwoViewReconstruction> ReconstructTwoViewUnguarded(
@@ -172,25 +267,13 @@ std::optional<TwoViewReconstruction> ReconstructTwoViewUnguarded(
   if (score_e + score_h <= 0.0) return fail(RefusalKind::kNoModel, "no model explains the matches");
   const bool prefer_h = score_h / (score_e + score_h) > kHomographyRatio;
 
-  // Motions of one model, checked by triangulation; the best must be unique. When the
-  // preferred model is ambiguous (a homography fitted to a non-planar scene at low parallax
-  // has two valid decompositions), the other model is tried.
-  auto try_model = [&](bool homography, std::string* reason) -> std::optional<MotionCheck> {
-    const cv::Mat& mask = homography ? h_mask : e_mask;
-    if ((homography ? h_cv.empty() : e_cv.rows != 3) || mask.empty()) {
-      *reason = "no model";
-      return std::nullopt;
-    }
-    std::vector<int> inliers;
-    for (int i = 0; i < n; ++i) {
-      if (mask.at<uchar>(i)) inliers.push_back(i);
-    }
-    if (static_cast<int>(inliers.size()) < options.min_points) {
-      *reason = "too few model inliers";
-      return std::nullopt;
-    }
+  std::vector<int> all_subset;
+  for (const size_t i : EvenlySpacedIndices(static_cast<size_t>(n), kMotionCheckPoints))
+    all_subset.push_back(static_cast<int>(i));
+  // The candidate motions of one model (none when it has no estimate).
+  auto motions_of = [&](bool homography) {
     std::vector<std::pair<Eigen::Matrix3d, Eigen::Vector3d>> motions;
-    if (homography) {
+    if (homography && !h_cv.empty()) {
       std::vector<cv::Mat> rs, ts, normals;
       cv::decomposeHomographyMat(h_cv, k_cv, rs, ts, normals);
       for (size_t i = 0; i < rs.size(); ++i) {
@@ -200,7 +283,7 @@ std::optional<TwoViewReconstruction> ReconstructTwoViewUnguarded(
         cv::cv2eigen(ts[i], t);
         motions.emplace_back(r, t);
       }
-    } else {
+    } else if (!homography && e_cv.rows == 3) {
       cv::Mat r1_cv, r2_cv, t_cv;
       cv::decomposeEssentialMat(e_cv, r1_cv, r2_cv, t_cv);
       Eigen::Matrix3d r1, r2;
@@ -209,6 +292,30 @@ std::optional<TwoViewReconstruction> ReconstructTwoViewUnguarded(
       cv::cv2eigen(r2_cv, r2);
       cv::cv2eigen(t_cv, t);
       motions = {{r1, t}, {r1, -t}, {r2, t}, {r2, -t}};
+    }
+    return motions;
+  };
+  // Motions of one model, checked by triangulation; the best must be unique, among the motions
+  // of both models. When the preferred model is ambiguous (a homography fitted to a non-planar
+  // scene at low parallax has two valid decompositions), the other model is tried.
+  struct Refused {
+    RefusalKind kind = RefusalKind::kNoModel;
+    std::string reason;
+  };
+  auto try_model = [&](bool homography, Refused* refused) -> std::optional<MotionCheck> {
+    const cv::Mat& mask = homography ? h_mask : e_mask;
+    const auto motions = motions_of(homography);
+    if (motions.empty() || mask.empty()) {
+      refused->reason = "no model";
+      return std::nullopt;
+    }
+    std::vector<int> inliers;
+    for (int i = 0; i < n; ++i) {
+      if (mask.at<uchar>(i)) inliers.push_back(i);
+    }
+    if (static_cast<int>(inliers.size()) < options.min_points) {
+      refused->reason = "too few model inliers";
+      return std::nullopt;
     }
     // The candidate motions are ranked on an even subset of the inliers (the triangulations
     // are most of an attempt's cost); the best one is then checked on all of them.
@@ -221,7 +328,7 @@ std::optional<TwoViewReconstruction> ReconstructTwoViewUnguarded(
       checks.push_back(CheckMotion(model, m, subset, r, t.normalized()));
     }
     if (checks.empty()) {
-      *reason = "no translation between the views";
+      refused->reason = "no translation between the views";
       return std::nullopt;
     }
     std::sort(checks.begin(), checks.end(),
@@ -229,7 +336,31 @@ std::optional<TwoViewReconstruction> ReconstructTwoViewUnguarded(
     if (median_parallax_deg)
       *median_parallax_deg = std::max(*median_parallax_deg, checks[0].median_parallax_deg);
     if (checks.size() > 1 && checks[1].good > kAmbiguityRatio * checks[0].good) {
-      *reason = "ambiguous motion (rotation only or too little parallax)";
+      refused->reason = "ambiguous motion (rotation only or too little parallax)";
+      return std::nullopt;
+    }
+    // A motion of the other model that differs from the best and fits these inliers about as
+    // well (a likelihood-ratio test on the truncated reprojection costs) is a second solution,
+    // a plane's twin: the views do not decide between them, however exact the data.
+    for (const auto& [r, t] : motions_of(!homography)) {
+      if (t.norm() < 1e-12) continue;
+      const Pose3 other(r, t.normalized());
+      if (!DistinctMotions(other, checks[0].camera1_from_camera0, options)) continue;
+      if (CheckMotion(model, m, subset, r, t.normalized()).cost - checks[0].cost <
+          kChi2FiveDof999) {
+        *refused = {RefusalKind::kWeakGeometry, "two distinct motions explain the views"};
+        return std::nullopt;
+      }
+    }
+    // Association is by id, so nearly every match is a true correspondence: a motion that
+    // leaves many of them unexplained fits only part of the scene (a dense cluster that a wrong
+    // motion fits within the noise, the sparse points rejected as RANSAC outliers).
+    const int explained =
+        CheckMotion(model, m, all_subset, checks[0].camera1_from_camera0.RotationMatrix(),
+                    checks[0].camera1_from_camera0.translation())
+            .good;
+    if (explained < kMinExplainedFraction * static_cast<double>(all_subset.size())) {
+      refused->reason = "the best motion explains too few of the shared features";
       return std::nullopt;
     }
     if (subset.size() < inliers.size()) {
@@ -240,23 +371,27 @@ std::optional<TwoViewReconstruction> ReconstructTwoViewUnguarded(
         std::max(options.min_points,
                  static_cast<int>(kMinGoodFraction * static_cast<double>(inliers.size())));
     if (checks[0].good < min_good) {
-      *reason = "too few points triangulate with the best motion";
+      refused->reason = "too few points triangulate with the best motion";
       return std::nullopt;
     }
     if (checks[0].median_parallax_deg < options.min_parallax_deg) {
-      *reason = "too little parallax";
+      refused->reason = "too little parallax";
       return std::nullopt;
     }
     return std::move(checks[0]);
   };
-  std::string reason_preferred, reason_other;
+  Refused refused_preferred, refused_other;
   bool use_h = prefer_h;
-  auto chosen = try_model(prefer_h, &reason_preferred);
+  auto chosen = try_model(prefer_h, &refused_preferred);
   if (!chosen) {
-    chosen = try_model(!prefer_h, &reason_other);
+    chosen = try_model(!prefer_h, &refused_other);
     use_h = !prefer_h;
   }
-  if (!chosen) return fail(RefusalKind::kNoModel, reason_preferred);
+  if (!chosen) {
+    const Refused& refused =
+        refused_other.kind == RefusalKind::kWeakGeometry ? refused_other : refused_preferred;
+    return fail(refused.kind, refused.reason);
+  }
   const MotionCheck& best = *chosen;
 
   TwoViewReconstruction out;
@@ -271,6 +406,14 @@ std::optional<TwoViewReconstruction> ReconstructTwoViewUnguarded(
   }
   if (static_cast<int>(out.ids.size()) < options.min_points) {
     return fail(RefusalKind::kNoModel, "too few points with enough parallax");
+  }
+  // The motion must be determined by the views, not merely consistent with them: bunched or
+  // distant points leave a valley of motions that fit them within the noise (exact data too),
+  // and RANSAC's pick in it is arbitrary.
+  const std::optional<MotionUncertainty> uncertainty = TwoViewMotionUncertainty(
+      model.camera, model.pixel_sigma, out.camera1_from_camera0, out.points);
+  if (!WellDetermined(uncertainty, options)) {
+    return fail(RefusalKind::kWeakGeometry, "the views leave the motion undetermined");
   }
   return out;
 }
@@ -319,7 +462,8 @@ std::optional<InitialMap> Initializer::Process(int64_t seq, double timestamp,
     if (!too_few_shared && refusal.kind != RefusalKind::kTooLittleMotion) {
       const double elapsed = timestamp - reference_->timestamp;
       double wait = kMaxInitRetryDelayS;
-      if (parallax > 0.0 && elapsed > 0.0) {
+      // Weak geometry needs more baseline whatever the parallax: the longest wait.
+      if (refusal.kind != RefusalKind::kWeakGeometry && parallax > 0.0 && elapsed > 0.0) {
         const double needed = kRetryParallaxFraction * options_.min_parallax_deg;
         wait = std::clamp(elapsed * (needed / parallax - 1.0), 0.0, kMaxInitRetryDelayS);
       }
@@ -370,6 +514,16 @@ std::optional<InitialMap> Initializer::Process(int64_t seq, double timestamp,
     if (bad[i] || !p.allFinite() || p.z() <= 0.0 || (camera1_from_world * p).z() <= 0.0) continue;
     map.point_ids.push_back(problem.points[i].id);
     map.points.push_back(p);
+  }
+  // The gate of ReconstructTwoView once more, on the refined motion and points: the adjustment
+  // can leave a motion the two-view estimate only seemed to determine.
+  const std::optional<MotionUncertainty> uncertainty =
+      TwoViewMotionUncertainty(model_.camera, model_.pixel_sigma, camera1_from_world, map.points);
+  if (!WellDetermined(uncertainty, options_)) {
+    last_failure_ = "the refined motion is undetermined";
+    next_attempt_time_ = timestamp + kMaxInitRetryDelayS;
+    if (frames_since_reference_ > options_.max_reference_age) set_reference();
+    return std::nullopt;
   }
   if (static_cast<int>(map.points.size()) < options_.min_points) {
     last_failure_ = "too few points after bundle adjustment";

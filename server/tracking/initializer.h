@@ -3,7 +3,14 @@
 // (planar scenes pick the homography), triangulation of the candidate motions with cheirality,
 // reprojection and parallax checks, a unique best motion required, then a full bundle
 // adjustment of the two views and the scale fixed by median depth 1 in the first camera.
-// Pure rotation or too little parallax: no map (keep waiting, never a broken map).
+// Pure rotation or too little parallax: no map (keep waiting, never a broken map). The views
+// must also determine the motion, not merely fit it (docs/design/two_view_initialisation.md):
+// the chosen motion must explain nearly all shared features (association is by id); no distinct
+// motion of the other model may fit about as well (a plane's twin); and the motion's standard
+// deviations for pixel_sigma noise (TwoViewMotionUncertainty) must be within
+// InitializerOptions' bounds, before and after the bundle adjustment. Bunched or distant points
+// fail that with exact data too (TwoViewRefusal::Kind::kWeakGeometry), and the initialiser
+// waits for more baseline.
 // A refused attempt costs milliseconds (two RANSACs): after one, the next attempt waits until the
 // parallax, growing with the time since the reference frame, should be near the bound (at most
 // kMaxInitRetryDelayS later), so waiting frames stay cheap.
@@ -41,6 +48,8 @@ struct TwoViewRefusal {
     kTooFewShared,     // fewer shared ids than InitializerOptions::min_points
     kTooLittleMotion,  // the image motion cannot give the parallax needed
     kNoModel,          // the RANSACs ran and no motion explains the views well enough
+    kWeakGeometry,     // a motion explains the views but they do not determine it (bunched or
+                       // distant points, a plane's twin motion): more baseline needed
     kSolverError,      // an OpenCV solver refused the input (degenerate configuration)
   };
   Kind kind = Kind::kNoModel;
@@ -55,6 +64,19 @@ struct TwoViewRefusal {
 std::optional<TwoViewReconstruction> ReconstructTwoView(
     const MeasurementModel& model, const InitializerOptions& options, const SortedFeatures& view0,
     const SortedFeatures& view1, TwoViewRefusal* refusal, double* median_parallax_deg = nullptr);
+
+// Standard deviations (radians) of the relative motion of two views: the rotation, and the
+// direction of the translation (its length is the monocular scale), for image noise
+// `pixel_sigma` on the points' projections. The inverse of the motion's Fisher information with
+// the points marginalised (Schur complement); a motion the views leave unconstrained gives
+// infinities. nullopt without translation or with fewer than 3 points.
+struct MotionUncertainty {
+  double rotation_rad = 0.0;
+  double direction_rad = 0.0;
+};
+std::optional<MotionUncertainty> TwoViewMotionUncertainty(
+    const Camera& camera, double pixel_sigma, const Pose3& camera1_from_camera0,
+    const std::vector<Eigen::Vector3d>& points_camera0);
 
 struct InitialFrame {
   int64_t seq = 0;

@@ -108,6 +108,10 @@ TEST(Options, FeatureBudgetMustFeedTheInitialiser) {
 TEST(Options, ChecksEveryStage) {
   using O = Options;
   ExpectRefused<O>([](O* o) { o->initializer.min_points = 2; }, "InitializerOptions: min_points");
+  ExpectRefused<O>([](O* o) { o->initializer.max_rotation_sigma_deg = 0.0; },
+                   "InitializerOptions: max_rotation_sigma_deg");
+  ExpectRefused<O>([](O* o) { o->initializer.max_direction_sigma_deg = kNan; },
+                   "InitializerOptions: max_direction_sigma_deg");
   ExpectRefused<O>([](O* o) { o->tracker.min_inliers = 2; }, "TrackerOptions: min_inliers");
   ExpectRefused<O>([](O* o) { o->mapper.max_keyframes = 0; }, "MapperOptions: max_keyframes");
   ExpectRefused<O>([](O* o) { o->drift.min_error = kNan; }, "DriftOptions: min_error");

@@ -37,6 +37,13 @@ struct InitializerOptions {
   int min_points = 60;
   double min_parallax_deg = 1.5;
   int max_reference_age = 120;
+  // The views must determine the relative motion, not merely fit it: its standard deviations
+  // for pixel_sigma noise (rotation; direction of the translation) at most these. Points
+  // bunched in a small or distant part of the image fit a valley of wrong motions within the
+  // noise, exact data too (docs/design/two_view_initialisation.md). The default room's
+  // initialisations have at most 0.07 and 1.3 degrees.
+  double max_rotation_sigma_deg = 0.5;
+  double max_direction_sigma_deg = 5.0;
 
   Status Check() const;
 };

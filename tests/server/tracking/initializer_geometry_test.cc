@@ -1,0 +1,299 @@
+// Two-view initialisation on hard geometry, checked against the known motion: a planar wall,
+// sparse points, a dense cluster with a few sparse points, points bunched in a small distant
+// part of the image; exact and noisy projections. The initialiser must either give the true
+// motion (up to scale) or refuse; and the motion uncertainty it gates on must match an
+// independent numerical computation.
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <Eigen/Dense>
+
+#include "tracking/initializer.h"
+
+namespace m2s::slam {
+namespace {
+
+// Deterministic uniform numbers in [lo, hi) (the same on every platform).
+class Uniform {
+ public:
+  explicit Uniform(uint64_t seed) : state_(seed * 0x9E3779B97F4A7C15ull + 1) {}
+  double operator()(double lo, double hi) {
+    state_ = state_ * 6364136223846793005ull + 1442695040888963407ull;
+    return lo + (hi - lo) * static_cast<double>(state_ >> 11) / static_cast<double>(1ull << 53);
+  }
+  double Gaussian() {  // Box-Muller
+    const double u1 = std::max((*this)(0.0, 1.0), 1e-300), u2 = (*this)(0.0, 1.0);
+    return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * M_PI * u2);
+  }
+
+ private:
+  uint64_t state_;
+};
+
+enum class Layout {
+  kPlanarWall,      // 150 points on a tilted wall
+  kSparse,          // 150 points at 2-6 m
+  kClusterAndFew,   // 3000 points in a 15 cm blob at 1.8 m, 150 sparse points behind
+  kBunched,         // 150 points in a small patch of the image at 3-5 m
+  kDistantCluster,  // 3000 points in a 20 cm blob at 3 m, nothing else
+};
+
+std::vector<Eigen::Vector3d> MakePoints(Layout layout, Uniform* u) {
+  std::vector<Eigen::Vector3d> pts;
+  auto blob = [&](int n, const Eigen::Vector3d& centre, double radius) {
+    while (n > 0) {
+      const Eigen::Vector3d d(u->operator()(-1, 1), (*u)(-1, 1), (*u)(-1, 1));
+      if (d.norm() < 1e-3 || d.norm() > 1.0) continue;
+      pts.push_back(centre + radius * (1.0 + 0.1 * (*u)(-1, 1)) * d.normalized());
+      --n;
+    }
+  };
+  auto sparse = [&](int n, double zmin, double zmax) {
+    for (int i = 0; i < n; ++i) {
+      const double z = (*u)(zmin, zmax);
+      pts.emplace_back(0.6 * (*u)(-1, 1) * z, 0.45 * (*u)(-1, 1) * z, z);
+    }
+  };
+  switch (layout) {
+    case Layout::kPlanarWall:
+      for (int i = 0; i < 150; ++i) {
+        const double x = 2.5 * (*u)(-1, 1), y = 1.8 * (*u)(-1, 1);
+        pts.emplace_back(x, y, 3.0 + 0.3 * x);
+      }
+      break;
+    case Layout::kSparse:
+      sparse(150, 2.0, 6.0);
+      break;
+    case Layout::kClusterAndFew:
+      sparse(150, 3.0, 6.0);
+      blob(3000, Eigen::Vector3d(0.5, 0.3, 1.8), 0.15);
+      break;
+    case Layout::kBunched:
+      for (int i = 0; i < 150; ++i) {
+        const double z = (*u)(3.0, 5.0);
+        pts.emplace_back((-0.15 + 0.05 * (*u)(-1, 1)) * z, (-0.1 + 0.05 * (*u)(-1, 1)) * z, z);
+      }
+      break;
+    case Layout::kDistantCluster:
+      blob(3000, Eigen::Vector3d(0.2, 0.1, 3.0), 0.2);
+      break;
+  }
+  return pts;
+}
+
+SortedFeatures Project(const Camera& camera, const Pose3& world_from_camera,
+                       const std::vector<Eigen::Vector3d>& points, double noise_px, Uniform* u) {
+  SortedFeatures f;
+  const Pose3 camera_from_world = world_from_camera.Inverse();
+  for (size_t i = 0; i < points.size(); ++i) {
+    const Eigen::Vector3d pc = camera_from_world * points[i];
+    if (pc.z() <= camera.near) continue;
+    Eigen::Vector2d uv = camera.Project(pc);
+    if (noise_px > 0.0) uv += noise_px * Eigen::Vector2d(u->Gaussian(), u->Gaussian());
+    if (!camera.InImage(uv.x(), uv.y())) continue;
+    f.ids.push_back(static_cast<VertexId>(i));
+    f.uvs.push_back(uv);
+  }
+  return f;
+}
+
+// A random motion: 3-28 cm, mostly sideways, 0-6 degrees of rotation about a random axis.
+Pose3 RandomMotion(Uniform* u) {
+  const Eigen::Vector3d direction =
+      Eigen::Vector3d((*u)(-1, 1), 0.3 * (*u)(-1, 1), 0.3 * (*u)(-1, 1)).normalized();
+  const Eigen::Vector3d axis = Eigen::Vector3d((*u)(-1, 1), (*u)(-1, 1), (*u)(-1, 1)).normalized();
+  const double angle = (*u)(0.0, 6.0) * M_PI / 180.0;
+  return Pose3(Eigen::Quaterniond(Eigen::AngleAxisd(angle, axis)), direction * (*u)(0.03, 0.28));
+}
+
+struct MotionError {
+  double rotation_deg;
+  double direction_deg;
+};
+
+MotionError ErrorOf(const Pose3& estimate, const Pose3& truth) {
+  const double cos_direction =
+      estimate.translation().normalized().dot(truth.translation().normalized());
+  return {RotationAngle(estimate.rotation().conjugate() * truth.rotation()) * 180.0 / M_PI,
+          std::acos(std::clamp(cos_direction, -1.0, 1.0)) * 180.0 / M_PI};
+}
+
+struct Outcome {
+  int accepted = 0;
+  int refused = 0;
+  MotionError worst{0.0, 0.0};
+};
+
+// Two views of `layout` per trial, each with its own random motion, through Initializer.
+Outcome RunTrials(Layout layout, double noise_px, int trials) {
+  Options options;
+  options.camera = Camera();
+  Outcome out;
+  for (int trial = 0; trial < trials; ++trial) {
+    Uniform u(100 * static_cast<uint64_t>(layout) + static_cast<uint64_t>(trial));
+    const std::vector<Eigen::Vector3d> points = MakePoints(layout, &u);
+    const Pose3 truth = RandomMotion(&u);  // world_from_camera1, world = camera 0
+    Initializer init(options.measurement(), options.initializer, 1);
+    init.Process(0, 0.0, Project(options.camera, Pose3::Identity(), points, noise_px, &u));
+    const auto map = init.Process(1, 1.0, Project(options.camera, truth, points, noise_px, &u));
+    if (!map) {
+      ++out.refused;
+      continue;
+    }
+    ++out.accepted;
+    const MotionError e = ErrorOf(map->second.world_from_camera, truth);
+    out.worst.rotation_deg = std::max(out.worst.rotation_deg, e.rotation_deg);
+    out.worst.direction_deg = std::max(out.worst.direction_deg, e.direction_deg);
+  }
+  return out;
+}
+
+constexpr int kTrials = 12;
+const Layout kLayouts[] = {Layout::kPlanarWall, Layout::kSparse, Layout::kClusterAndFew,
+                           Layout::kBunched, Layout::kDistantCluster};
+
+// Exact data: a map's motion is the true one, or there is no map. (Without the uncertainty
+// gate and the twin-motion check, these trials gave maps 2-21 degrees and up to 178 degrees of
+// translation direction off.)
+TEST(InitializerGeometry, ExactDataGivesTheTrueMotionOrNone) {
+  int accepted = 0;
+  for (const Layout layout : kLayouts) {
+    const Outcome o = RunTrials(layout, 0.0, kTrials);
+    accepted += o.accepted;
+    EXPECT_LT(o.worst.rotation_deg, 1e-3) << "layout " << static_cast<int>(layout);
+    EXPECT_LT(o.worst.direction_deg, 1e-2) << "layout " << static_cast<int>(layout);
+  }
+  // Many views still initialise in one attempt (measured: 22 of 60, the planar and sparse ones;
+  // the others wait for more baseline).
+  EXPECT_GE(accepted, 15);
+}
+
+// 0.5 px noise: a map's motion is within three of the gate's standard deviations of the truth
+// (max_rotation_sigma_deg, max_direction_sigma_deg are for pixel_sigma = 1 px; measured worst
+// 0.58 and 8.2 degrees, 9 of 60 accepted).
+TEST(InitializerGeometry, NoisyDataGivesAMotionNearTheTruthOrNone) {
+  const InitializerOptions defaults;
+  for (const Layout layout : kLayouts) {
+    const Outcome o = RunTrials(layout, 0.5, kTrials);
+    EXPECT_LT(o.worst.rotation_deg, 3.0 * defaults.max_rotation_sigma_deg)
+        << "layout " << static_cast<int>(layout);
+    EXPECT_LT(o.worst.direction_deg, 3.0 * defaults.max_direction_sigma_deg)
+        << "layout " << static_cast<int>(layout);
+  }
+}
+
+// Points bunched in a small distant patch fit a valley of motions (rotation traded against
+// translation): even the true motion is undetermined by them, and the views are refused,
+// exact data too.
+TEST(InitializerGeometry, BunchedPointsAreRefused) {
+  Options options;
+  options.camera = Camera();
+  Uniform u(11);
+  const std::vector<Eigen::Vector3d> points = MakePoints(Layout::kBunched, &u);
+  const Pose3 truth(Eigen::Quaterniond(Eigen::AngleAxisd(0.05, Eigen::Vector3d::UnitY())),
+                    Eigen::Vector3d(0.25, 0.02, 0.0));
+  const auto at_truth =
+      TwoViewMotionUncertainty(options.camera, options.pixel_sigma, truth.Inverse(), points);
+  ASSERT_TRUE(at_truth.has_value());
+  EXPECT_GT(at_truth->rotation_rad * 180.0 / M_PI, options.initializer.max_rotation_sigma_deg);
+  TwoViewRefusal refusal;
+  const auto two_view =
+      ReconstructTwoView(options.measurement(), options.initializer,
+                         Project(options.camera, Pose3::Identity(), points, 0.0, &u),
+                         Project(options.camera, truth, points, 0.0, &u), &refusal);
+  ASSERT_FALSE(two_view.has_value());
+  EXPECT_TRUE(refusal.kind == TwoViewRefusal::Kind::kWeakGeometry ||
+              refusal.kind == TwoViewRefusal::Kind::kNoModel)
+      << refusal.message;
+}
+
+// A short sequence: the camera walks sideways past a dense cluster and a few sparse points. The
+// first attempts are refused; a later frame (measured: the 8th) initialises with the true
+// motion.
+TEST(InitializerGeometry, ClusterSequenceInitialisesLaterWithTheTrueMotion) {
+  Options options;
+  options.camera = Camera();
+  Uniform u(5);
+  const std::vector<Eigen::Vector3d> points = MakePoints(Layout::kClusterAndFew, &u);
+  Initializer init(options.measurement(), options.initializer, 1);
+  const double fps = 30.0, speed_mps = 0.3;
+  std::optional<InitialMap> map;
+  Pose3 truth;
+  int frame = 0;
+  for (; frame < 90 && !map; ++frame) {
+    const double t = frame / fps;
+    truth = Pose3(Eigen::Quaterniond(Eigen::AngleAxisd(-0.02 * t, Eigen::Vector3d::UnitY())),
+                  Eigen::Vector3d(speed_mps * t, 0.02 * t, 0.0));
+    map = init.Process(frame, t, Project(options.camera, truth, points, 0.0, &u));
+  }
+  ASSERT_TRUE(map.has_value()) << init.last_failure();
+  EXPECT_EQ(map->first.seq, 0);
+  const MotionError e = ErrorOf(map->second.world_from_camera, truth);
+  EXPECT_LT(e.rotation_deg, 1e-3);
+  EXPECT_LT(e.direction_deg, 1e-2);
+}
+
+// The motion's standard deviations against an independent computation: the full Jacobian of
+// every reprojection residual by central differences, the 5 x 5 block of (J^T J)^-1.
+TEST(InitializerGeometry, MotionUncertaintyMatchesNumericalInformation) {
+  const Camera camera;
+  Uniform u(3);
+  std::vector<Eigen::Vector3d> points;
+  for (int i = 0; i < 25; ++i) {
+    const double z = u(2.0, 6.0);
+    points.emplace_back(0.5 * u(-1, 1) * z, 0.4 * u(-1, 1) * z, z);
+  }
+  const Pose3 motion(
+      Eigen::Quaterniond(Eigen::AngleAxisd(0.04, Eigen::Vector3d(0.3, 1, 0.1).normalized())),
+      Eigen::Vector3d(0.2, 0.03, 0.05));  // camera1_from_camera0
+  const double sigma = 0.7;
+  const auto analytic = TwoViewMotionUncertainty(camera, sigma, motion, points);
+  ASSERT_TRUE(analytic.has_value());
+
+  // Parameters: rotation (left perturbation), translation direction (two angles), points.
+  const Eigen::Vector3d t = motion.translation();
+  const Eigen::Vector3d d = t.normalized();
+  const Eigen::Vector3d e1 = d.unitOrthogonal(), e2 = d.cross(e1);
+  const int n = static_cast<int>(points.size());
+  const int num_params = 5 + 3 * n;
+  auto residuals = [&](const Eigen::VectorXd& x) {
+    const Eigen::Matrix3d r =
+        Eigen::AngleAxisd(x.head<3>().norm(), x.head<3>().norm() > 0 ? x.head<3>().normalized()
+                                                                     : Eigen::Vector3d::UnitX())
+            .toRotationMatrix() *
+        motion.RotationMatrix();
+    // The direction turned by the two angles, the length kept (the scale is not observable).
+    const Eigen::Vector3d dir = (d + std::tan(x(3)) * e1 + std::tan(x(4)) * e2).normalized();
+    Eigen::VectorXd res(4 * n);
+    for (int i = 0; i < n; ++i) {
+      const Eigen::Vector3d p = points[i] + x.segment<3>(5 + 3 * i);
+      res.segment<2>(4 * i) = camera.Project(p) / sigma;
+      res.segment<2>(4 * i + 2) = camera.Project(r * p + t.norm() * dir) / sigma;
+    }
+    return res;
+  };
+  Eigen::MatrixXd jacobian(4 * n, num_params);
+  const double h = 1e-6;
+  for (int k = 0; k < num_params; ++k) {
+    Eigen::VectorXd plus = Eigen::VectorXd::Zero(num_params), minus = plus;
+    plus(k) = h;
+    minus(k) = -h;
+    jacobian.col(k) = (residuals(plus) - residuals(minus)) / (2.0 * h);
+  }
+  const Eigen::MatrixXd covariance = (jacobian.transpose() * jacobian).inverse();
+  const double rotation_sigma =
+      std::sqrt(Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(covariance.topLeftCorner<3, 3>())
+                    .eigenvalues()
+                    .maxCoeff());
+  const double direction_sigma =
+      std::sqrt(Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(covariance.block<2, 2>(3, 3))
+                    .eigenvalues()
+                    .maxCoeff());
+  EXPECT_NEAR(analytic->rotation_rad, rotation_sigma, 1e-3 * rotation_sigma);
+  EXPECT_NEAR(analytic->direction_rad, direction_sigma, 1e-3 * direction_sigma);
+}
+
+}  // namespace
+}  // namespace m2s::slam
