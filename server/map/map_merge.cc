@@ -112,6 +112,8 @@ std::unordered_map<KeyframeId, KeyframeId> MergeMapInto(
       const auto ref = new_id.find(point.reference_keyframe);
       M2S_CHECK(ref != new_id.end()) << "point " << id << " refers to a missing keyframe";
       into->AddPoint(id, into_from_from * point.position, ref->second);
+      // Relative to depth, so a Sim3 leaves it as it is.
+      into->SetPointUncertainty(id, point.uncertainty, point.constrained);
     }
     for (const KeyframeId observer : point.observers) {
       into->AddObservation(id, new_id.at(observer));

@@ -55,9 +55,9 @@ Expected<MapAlignment> AlignMaps(const MapData& into, const MapData& from,
 // (maps of one system draw ids from one counter and keep them; maps of different systems
 // renumber). No resulting id may exist in `into`. The links of `from`'s removed keyframes come
 // along (renumbered after the keyframes), so trajectories that refer to them stay resolvable.
-// Points `into` lacks are added; a point both hold keeps `into`'s position and gains the
-// observations of `from`'s keyframes. Returns the id map (`from` id -> `into` id) of the
-// keyframes and links copied.
+// Points `into` lacks are added (with their uncertainty); a point both hold keeps `into`'s
+// position and gains the observations of `from`'s keyframes. Returns the id map (`from` id ->
+// `into` id) of the keyframes and links copied.
 std::unordered_map<KeyframeId, KeyframeId> MergeMapInto(
     MapData* into, const MapData& from, const Sim3& into_from_from,
     std::optional<KeyframeId> first_keyframe_id = std::nullopt);
