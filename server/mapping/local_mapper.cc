@@ -52,6 +52,7 @@ void LocalMapper::InsertInitialMap(const InitialMap& initial, KeyframeId first, 
     }
     UpdateUncertainty(initial.point_ids, &m);
   });
+  FlushUncertainty();
   std::lock_guard<std::mutex> lock(stats_mutex_);
   stats_.points_created += static_cast<int64_t>(initial.point_ids.size());
 }
@@ -132,6 +133,7 @@ void LocalMapper::Process(const KeyframeCandidate& c, bool backlog) {
   }
   CullRecentPoints();
   CullKeyframes(c.id);
+  FlushUncertainty();
   std::lock_guard<std::mutex> lock(stats_mutex_);
   ++stats_.keyframes_processed;
 }
@@ -375,14 +377,31 @@ void LocalMapper::GlobalBundleAdjust(int max_iterations, int max_points) {
   });
   if (problem.keyframes.size() < 2) return;
   SolveAndApply(&problem, window.rest, max_iterations);
+  FlushUncertainty();
   std::lock_guard<std::mutex> lock(stats_mutex_);
   ++stats_.global_bundle_adjustments;
 }
 
-void LocalMapper::UpdateUncertainty(const std::vector<VertexId>& ids, MapData* m) const {
+void LocalMapper::UpdateUncertainty(const std::vector<VertexId>& ids, MapData* /*m*/) {
+  std::lock_guard<std::mutex> lock(pending_mutex_);
+  pending_uncertainty_.insert(pending_uncertainty_.end(), ids.begin(), ids.end());
+}
+
+void LocalMapper::FlushUncertainty() {
+  std::vector<VertexId> ids;
+  {
+    std::lock_guard<std::mutex> lock(pending_mutex_);
+    ids.swap(pending_uncertainty_);
+  }
+  if (ids.empty()) return;
+  std::sort(ids.begin(), ids.end());
+  ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
   const PointGate gate{model_.pixel_sigma, options_.max_point_uncertainty,
                        checks_.max_reprojection_px};
-  UpdatePointUncertainty(model_.camera, gate, ids, m);
+  // This stage is the map's only writer: nothing changes between the read and the write.
+  const std::vector<PointQuality> quality = map_->Read(
+      [&](const MapData& m) { return EvaluatePointUncertainty(model_.camera, gate, ids, m); });
+  map_->Write([&](MapData& m) { ApplyPointQuality(quality, &m); });
 }
 
 void LocalMapper::CullRecentPoints() {

@@ -85,9 +85,12 @@ class LocalMapper {
   double SolveAndApply(BaProblem* problem, const std::vector<VertexId>& rest, int max_iterations);
   // Applies a solved BA problem: poses, positions, outlier observations, unsupported points.
   void ApplyBundleAdjustment(const BaProblem& problem, const BundleAdjustmentResult& result);
-  // Re-evaluates which of the points `ids` are well constrained (inside map_->Write; every
-  // change of a point's position, observers or observers' poses goes through it).
-  void UpdateUncertainty(const std::vector<VertexId>& ids, MapData* m) const;
+  // Marks the points `ids` for re-evaluation of whether they are well constrained (inside
+  // map_->Write; every change of a point's position, observers or observers' poses goes
+  // through it); FlushUncertainty() evaluates them under the map's shared lock and writes the
+  // result under the exclusive one, at the end of each public entry point.
+  void UpdateUncertainty(const std::vector<VertexId>& ids, MapData* m);
+  void FlushUncertainty();
 
   MeasurementModel model_;
   MapperOptions options_;
@@ -103,6 +106,8 @@ class LocalMapper {
   std::deque<RecentPoints> recent_points_;
   mutable std::mutex stats_mutex_;
   MappingStats stats_;
+  std::mutex pending_mutex_;
+  std::vector<VertexId> pending_uncertainty_;
 };
 
 }  // namespace m2s::slam

@@ -49,17 +49,20 @@ double RelativePointUncertainty(const Camera& camera, double pixel_sigma,
   return pixel_sigma / std::sqrt(smallest) / mean_depth;
 }
 
-void UpdatePointUncertainty(const Camera& camera, const PointGate& gate,
-                            const std::vector<VertexId>& ids, MapData* map) {
+std::vector<PointQuality> EvaluatePointUncertainty(const Camera& camera, const PointGate& gate,
+                                                   const std::vector<VertexId>& ids,
+                                                   const MapData& map) {
   const double max_err_sq = gate.max_reprojection_px * gate.max_reprojection_px;
+  std::vector<PointQuality> out;
+  out.reserve(ids.size());
   std::vector<Pose3> poses;
   for (const VertexId id : ids) {
-    const MapPoint* p = map->point(id);
+    const MapPoint* p = map.point(id);
     if (p == nullptr) continue;
     poses.clear();
     bool agree = true;
     for (const KeyframeId o : p->observers) {
-      const Keyframe* kf = map->keyframe(o);
+      const Keyframe* kf = map.keyframe(o);
       if (kf == nullptr) continue;
       poses.push_back(kf->world_from_camera.Inverse());
       const Eigen::Vector2d* uv = kf->Find(id);
@@ -67,8 +70,20 @@ void UpdatePointUncertainty(const Camera& camera, const PointGate& gate,
               ReprojectionErrorSq(camera, poses.back(), p->position, *uv) <= max_err_sq;
     }
     const double u = RelativePointUncertainty(camera, gate.pixel_sigma, poses, p->position);
-    map->SetPointUncertainty(id, u, agree && u <= gate.max_uncertainty);
+    out.push_back({id, u, agree && u <= gate.max_uncertainty});
   }
+  return out;
+}
+
+void ApplyPointQuality(const std::vector<PointQuality>& quality, MapData* map) {
+  for (const PointQuality& q : quality) {
+    if (map->point(q.id) != nullptr) map->SetPointUncertainty(q.id, q.uncertainty, q.constrained);
+  }
+}
+
+void UpdatePointUncertainty(const Camera& camera, const PointGate& gate,
+                            const std::vector<VertexId>& ids, MapData* map) {
+  ApplyPointQuality(EvaluatePointUncertainty(camera, gate, ids, *map), map);
 }
 
 }  // namespace m2s::slam

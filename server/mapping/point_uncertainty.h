@@ -53,4 +53,17 @@ struct PointGate {
 void UpdatePointUncertainty(const Camera& camera, const PointGate& gate,
                             const std::vector<VertexId>& ids, MapData* map);
 
+// The same in two steps, so that the work runs under Map::Read and only the result under
+// Map::Write (tracking waits for the write lock, not for the evaluation).
+struct PointQuality {
+  VertexId id = 0;
+  double uncertainty = -1.0;
+  bool constrained = false;
+};
+std::vector<PointQuality> EvaluatePointUncertainty(const Camera& camera, const PointGate& gate,
+                                                   const std::vector<VertexId>& ids,
+                                                   const MapData& map);
+// Points that no longer exist are skipped.
+void ApplyPointQuality(const std::vector<PointQuality>& quality, MapData* map);
+
 }  // namespace m2s::slam

@@ -30,6 +30,7 @@ struct ProjectorOptions {
   static ProjectorOptions Occluding() {
     ProjectorOptions options;
     options.occlusion = true;
+    options.occlusion_resolution_scale = 0.5;  // a quarter of the depth-buffer pixels
     return options;
   }
 
