@@ -46,8 +46,9 @@ echo "scenes: bench_scenes ${args[*]}" >&2
   echo "Columns: *visible* is the median number of vertices per frame; *init* the frames before"
   echo "the first pose; *lost* the frames after it without a pose and with at least 20 visible"
   echo "vertices; *few-visible untracked / frames* the frames without a pose that had fewer than"
-  echo "20 visible vertices, out of all frames with fewer than 20; *unmerged* the frames tracked"
-  echo "in maps not merged into the final one ('-': not reported); ATE is the Sim3-aligned error"
+  echo "20 visible vertices, out of all frames with fewer than 20; *maps* the SLAM maps started (a"
+  echo "new one after 0.5 s lost); *unmerged* the frames tracked"
+  echo "in maps not merged into the final one; ATE is the Sim3-aligned error"
   echo "of the final trajectory over the tracked frames; map error compares the map points with"
   echo "their vertices under the same alignment."
   echo
