@@ -131,17 +131,10 @@ struct PathSample {
 Status DroneMotionOptions::Check() const {
   auto positive = [](double v) { return std::isfinite(v) && v > 0.0; };
   auto non_negative = [](double v) { return std::isfinite(v) && v >= 0.0; };
-  if (!positive(duration_s) || !positive(rate_hz)) {
-    return Status::Error("duration_s and rate_hz must be positive");
-  }
-  if (!room.min().allFinite() || !room.max().allFinite() || room.isEmpty()) {
-    return Status::Error("room must be a finite, non-empty box");
-  }
-  if (!non_negative(wall_clearance_m) || !non_negative(obstacle_clearance_m)) {
-    return Status::Error("clearances must be non-negative");
-  }
-  if ((room.sizes().head<2>().array() <= 2.0 * wall_clearance_m).any()) {
-    return Status::Error("room is smaller than twice the wall clearance");
+  if (Status s = motion_internal::CheckRoomAndClearances(duration_s, rate_hz, room,
+                                                         wall_clearance_m, obstacle_clearance_m);
+      !s) {
+    return s;
   }
   if (!positive(min_altitude_m) || !(max_altitude_m >= min_altitude_m) ||
       min_altitude_m > room.sizes().z() - kCeilingMarginM) {

@@ -7,36 +7,26 @@
 #include "m2s/common/check.h"
 #include "m2s/common/scene.h"
 #include "m2s/common/trajectory.h"
+#include "motion_internal.h"
 
 namespace m2s {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-constexpr double kDegToRad = kPi / 180.0;
-constexpr double kMinJerkPeak = 1.875;          // peak of d/dtau of the minimum-jerk profile
-constexpr double kPathCheckStep = 0.05;         // metres between clearance checks along a segment
+using motion_internal::FreeSpace;
+using motion_internal::kDegToRad;
+using motion_internal::kMinJerkPeak;
+using motion_internal::kPi;
+using motion_internal::MinJerk;
+using motion_internal::Random;
+using motion_internal::WrapAngle;
+
 constexpr double kTurnRate = 50.0 * kDegToRad;  // mean rate of the heading's turn to a new segment
 constexpr double kMinTurn_s = 0.8;              // shortest turn
 constexpr double kPreferredMaxTurn = 100.0 * kDegToRad;  // sharper turns only as a fallback
 constexpr int kMaxTries = 2000;
 
-// Minimum-jerk profile on [0, 1] and its derivative.
-double MinJerk(double tau) { return tau * tau * tau * (10.0 + tau * (-15.0 + 6.0 * tau)); }
+// Derivative of the minimum-jerk profile on [0, 1].
 double MinJerkRate(double tau) { return 30.0 * tau * tau * (1.0 - tau) * (1.0 - tau); }
-
-double WrapAngle(double a) { return std::remainder(a, 2.0 * kPi); }
-
-// Uniform doubles from a std::mt19937_64 (its output is specified; std distributions are not).
-class Random {
- public:
-  explicit Random(uint64_t seed) : engine_(seed) {}
-  double Uniform(double lo, double hi) {
-    return lo + (hi - lo) * static_cast<double>(engine_() >> 11) * 0x1.0p-53;
-  }
-
- private:
-  std::mt19937_64 engine_;
-};
 
 struct Event {  // a walk from `from` to `to`, or a pause at `from` when from == to
   double t0, duration;
@@ -44,38 +34,8 @@ struct Event {  // a walk from `from` to `to`, or a pause at `from` when from ==
   double yaw_before, yaw;  // heading at the start and once turned
 };
 
-class Planner {
- public:
-  explicit Planner(const HeadMotionOptions& o) : o_(o) {
-    free_ = Eigen::AlignedBox2d(o.room.min().array() + o.wall_clearance_m,
-                                o.room.max().array() - o.wall_clearance_m);
-  }
-
-  bool IsFree(const Eigen::Vector2d& p) const {
-    if (!free_.contains(p)) return false;
-    return std::all_of(o_.obstacles.begin(), o_.obstacles.end(), [&](const Eigen::AlignedBox2d& b) {
-      return b.exteriorDistance(p) > o_.obstacle_clearance_m;
-    });
-  }
-  bool SegmentFree(const Eigen::Vector2d& a, const Eigen::Vector2d& b) const {
-    const int steps = std::max(1, static_cast<int>(std::ceil((b - a).norm() / kPathCheckStep)));
-    for (int i = 0; i <= steps; ++i) {
-      if (!IsFree(a + (b - a) * (static_cast<double>(i) / steps))) return false;
-    }
-    return true;
-  }
-  Eigen::Vector2d RandomPoint(Random& random) const {
-    return {random.Uniform(free_.min().x(), free_.max().x()),
-            random.Uniform(free_.min().y(), free_.max().y())};
-  }
-
- private:
-  const HeadMotionOptions& o_;
-  Eigen::AlignedBox2d free_;
-};
-
 Expected<std::vector<Event>> Plan(const HeadMotionOptions& o, Random& random) {
-  const Planner planner(o);
+  const FreeSpace planner(o.room, o.wall_clearance_m, o.obstacles, o.obstacle_clearance_m);
   Eigen::Vector2d position;
   int tries = 0;
   do {

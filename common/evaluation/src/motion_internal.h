@@ -12,6 +12,7 @@
 #include <Eigen/Geometry>
 
 #include "m2s/common/geometry.h"
+#include "m2s/common/status.h"
 
 namespace m2s::motion_internal {
 
@@ -34,6 +35,28 @@ class Random {
  private:
   std::mt19937_64 engine_;
 };
+
+// The checks the options of the hand-held and drone generators share: rate and duration, a
+// finite room with space left inside the wall clearance, non-negative clearances.
+template <typename Box>
+Status CheckRoomAndClearances(double duration_s, double rate_hz, const Box& room,
+                              double wall_clearance_m, double obstacle_clearance_m) {
+  auto positive = [](double v) { return std::isfinite(v) && v > 0.0; };
+  auto non_negative = [](double v) { return std::isfinite(v) && v >= 0.0; };
+  if (!positive(duration_s) || !positive(rate_hz)) {
+    return Status::Error("duration_s and rate_hz must be positive");
+  }
+  if (!room.min().allFinite() || !room.max().allFinite() || room.isEmpty()) {
+    return Status::Error("room must be a finite, non-empty box");
+  }
+  if (!non_negative(wall_clearance_m) || !non_negative(obstacle_clearance_m)) {
+    return Status::Error("clearances must be non-negative");
+  }
+  if ((room.sizes().template head<2>().array() <= 2.0 * wall_clearance_m).any()) {
+    return Status::Error("room is smaller than twice the wall clearance");
+  }
+  return Status::Ok();
+}
 
 // The floor plan: a rectangle shrunk by the wall clearance, minus obstacle footprints grown by
 // their clearance.
