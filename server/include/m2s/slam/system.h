@@ -66,6 +66,8 @@ struct KeyframeState {
   KeyframeId id = 0;
   double timestamp = 0.0;
   Pose3 world_from_camera;
+  // Created by the agent the delta is for (false: by another agent of its map group).
+  bool own = true;
 };
 
 // Map changes between two revisions. Apply in order: a receiver at `base_revision` moves to
@@ -155,6 +157,51 @@ class System {
 
   // Stops every thread (queued frames are discarded); idempotent, also done by the destructor.
   virtual void Shutdown() = 0;
+};
+
+struct GroupStats {
+  int agents_joined = 0;  // every Join() so far
+  int agents_active = 0;  // joined and not yet shut down
+  // Agents' own maps merged into the group's map, and how long each merge took from the
+  // agent's first keyframe that shared enough points with the group's map to the merged map
+  // (milliseconds; the most recent merges, oldest first).
+  int64_t merges = 0;
+  std::vector<double> merge_ms;
+  int keyframes = 0;   // in the group's map
+  int map_points = 0;  // in the group's map
+  bool localization_only = false;
+};
+
+// A map shared by several agents (a map group, e.g. the headsets in one room). Each agent is a
+// System of its own (its frames, trajectory, results, deltas) whose map is the group's: an agent
+// that joins a non-empty group first relocalises in the group's map by vertex id (no
+// initialisation where the map covers its view); otherwise, or when it stays lost, it builds a
+// map of its own and merges it into the group's as soon as the two share enough vertex ids
+// (map/map_merge.h); from then on its poses, including those tracked before the merge, are in
+// the group's world. Mapping of the whole group (the group's map and the agents' own maps) runs
+// in one thread (inline in Track() when Options::deterministic). An agent that shuts down
+// leaves its keyframes in the group's map. Trajectory map ids: 0 is the group's map, agents'
+// own maps are numbered from 1.
+//
+//   auto group = slam::MapGroup::Create(options);            // Expected<shared_ptr<MapGroup>>
+//   auto agent = (*group)->Join();                           // Expected<unique_ptr<System>>
+//   (*agent)->Track(frame);
+//
+// Thread-safety: every method may be called from any thread; an agent may outlive its group
+// object only as long as it holds it (each agent keeps the group alive).
+class MapGroup {
+ public:
+  // All agents share options.camera (and the other options).
+  static Expected<std::shared_ptr<MapGroup>> Create(const Options& options);
+  virtual ~MapGroup() = default;
+
+  virtual Expected<std::unique_ptr<System>> Join() = 0;
+  virtual GroupStats Stats() const = 0;
+  virtual const Options& options() const = 0;
+  // The group's map. Loading one makes the group localisation-only (a shared anchor): agents
+  // relocalise and track in it and never change it. Loading fails while agents are active.
+  virtual Status SaveMap(const std::string& path) const = 0;
+  virtual Status LoadMap(const std::string& path) = 0;
 };
 
 }  // namespace m2s::slam
