@@ -11,6 +11,13 @@ KeyframeId Map::NextKeyframeId() {
   return next_keyframe_id_++;
 }
 
+KeyframeId Map::ReserveKeyframeIds(size_t count) {
+  std::unique_lock<std::shared_mutex> lock(mutex_);
+  const KeyframeId first = next_keyframe_id_;
+  next_keyframe_id_ += static_cast<KeyframeId>(count);
+  return first;
+}
+
 uint64_t Map::revision() const {
   std::shared_lock<std::shared_mutex> lock(mutex_);
   return revision_;

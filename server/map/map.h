@@ -60,6 +60,8 @@ class Map {
 
   // A fresh keyframe id, never reused by this map (not even after Clear()).
   KeyframeId NextKeyframeId();
+  // `count` consecutive fresh ids (a map merged in with renumbered keyframes); the first.
+  KeyframeId ReserveKeyframeIds(size_t count);
   uint64_t revision() const;
 
   // Changes since the previous TakeDelta() (a full delta after Clear() or Load()). Deltas show

@@ -15,25 +15,8 @@
 namespace m2s::slam {
 namespace {
 
-// Results waiting for WaitForResult(); beyond this the oldest are dropped (nobody reads them).
-constexpr size_t kResultQueueCapacity = 4096;
-// Lost this many frames in a row with a map this small that tracked this few frames: the
-// initialisation was bad, start over without it.
-constexpr int kLostFramesBeforeReinit = 10;
-constexpr int kSmallMapKeyframes = 4;
-constexpr int kYoungMapFrames = 60;
 // Set-aside maps kept for merging; beyond this the one with the fewest keyframes is dropped.
 constexpr size_t kMaxSetAsideMaps = 8;
-// The joint refinement after a merge.
-constexpr int kMergeBaIterations = 15;
-
-bool HasPose(TrackingState state) {
-  return state == TrackingState::kOk || state == TrackingState::kRelocalized;
-}
-
-double MsSince(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-}
 
 }  // namespace
 
@@ -50,11 +33,10 @@ SlamSystem::SlamSystem(const Options& options)
       tracker_(options.measurement(), options.tracker, options.drift, &map_),
       mapper_(options.measurement(), options.mapper, options.drift, &map_),
       localization_only_(options.localization_only),
-      input_(static_cast<size_t>(options.input_queue_capacity),
-             BoundedQueue<Frame>::Policy::kDropOldest),
-      results_(kResultQueueCapacity, BoundedQueue<TrackResult>::Policy::kDropOldest),
       keyframes_(static_cast<size_t>(options.mapping_queue_capacity),
-                 BoundedQueue<KeyframeCandidate>::Policy::kBlock) {
+                 BoundedQueue<KeyframeCandidate>::Policy::kBlock),
+      runner_(static_cast<size_t>(options.input_queue_capacity),
+              [this](const Frame& frame) { return TrackLocked(frame); }) {
   tracker_.SetLocalizationOnly(localization_only_);
   StartMapping();
 }
@@ -89,46 +71,14 @@ void SlamSystem::MappingLoop() {
   }
 }
 
-void SlamSystem::TrackingLoop() {
-  while (auto frame = input_.Pop()) {
-    TrackResult r;
-    {
-      std::lock_guard<std::mutex> lock(track_mutex_);
-      r = TrackLocked(*frame);
-    }
-    results_.Push(std::move(r));
-  }
-}
-
-TrackResult SlamSystem::Track(const Frame& frame) {
-  std::lock_guard<std::mutex> lock(track_mutex_);
-  {
-    std::lock_guard<std::mutex> s(stats_mutex_);
-    ++stats_.frames_submitted;
-  }
-  return TrackLocked(frame);
-}
+TrackResult SlamSystem::Track(const Frame& frame) { return runner_.Track(frame); }
 
 void SlamSystem::Submit(Frame frame) {
-  if (shut_down_) return;
-  {
-    std::lock_guard<std::mutex> lock(threads_mutex_);
-    if (shut_down_) return;
-    if (!tracking_thread_.joinable()) tracking_thread_ = std::thread([this] { TrackingLoop(); });
-  }
-  {
-    std::lock_guard<std::mutex> s(stats_mutex_);
-    ++stats_.frames_submitted;
-  }
-  input_.Push(std::move(frame));
+  if (!shut_down_) runner_.Submit(std::move(frame));
 }
 
 bool SlamSystem::WaitForResult(TrackResult* result, double timeout_s) {
-  if (shut_down_) return false;
-  auto r = results_.PopFor(timeout_s);
-  if (!r) return false;
-  *result = std::move(*r);
-  return true;
+  return !shut_down_ && runner_.WaitForResult(result, timeout_s);
 }
 
 void SlamSystem::AppendRecord(Record* record) {
@@ -136,49 +86,26 @@ void SlamSystem::AppendRecord(Record* record) {
   record->map_id = current_map_;
   // Tracked in the merged map's world, just before the merge.
   if (last_merge_ && record->correction_epoch < last_merge_->epoch) {
-    MoveRecord(*last_merge_, record);
+    MoveRecordInto(*last_merge_, record);
   }
   trajectory_.push_back(*record);
 }
 
-void SlamSystem::MoveRecord(const MergeNotice& notice, Record* record) {
-  const Sim3& s = notice.into_from_from;
-  record->world_from_camera = s.TransformPose(record->world_from_camera);
-  // A relative pose keeps its rotation; its translation takes the scale.
-  record->reference_from_camera = Pose3(record->reference_from_camera.rotation(),
-                                        s.scale() * record->reference_from_camera.translation());
-  record->map_id = notice.into_map;
+void SlamSystem::MoveRecordInto(const MergeNotice& notice, Record* record) {
+  MoveRecord(notice.into_from_from, notice.into_map, record);
   record->correction_epoch = notice.epoch;
 }
 
 TrackResult SlamSystem::TrackLocked(const Frame& frame) {
   const auto t0 = std::chrono::steady_clock::now();
   TrackResult result;
-  result.seq = frame.seq;
-  result.timestamp = frame.timestamp;
-  result.num_features = static_cast<int>(frame.features.size());
-  if (shut_down_) {
-    result.state = TrackingState::kRejected;
-    result.reject_reason = "shut_down";
-    return result;
-  }
+  SortedFeatures features;
   {
     std::lock_guard<std::mutex> s(stats_mutex_);
-    ++stats_.frames_processed;
-  }
-  SortedFeatures features;
-  if (const Status valid = validator_.Validate(frame, &features); !valid) {
-    const char* reason = ToString(*valid.reason());
-    result.state = TrackingState::kRejected;
-    result.reject_reason = reason;
-    std::lock_guard<std::mutex> s(stats_mutex_);
-    ++stats_.frames_rejected;
-    ++stats_.rejected_by_reason[reason];
-    return result;
-  }
-  if (const size_t removed = ApplyFeatureBudget(options_.feature_budget, budget_grid_, &features)) {
-    std::lock_guard<std::mutex> s(stats_mutex_);
-    stats_.features_over_budget += static_cast<int64_t>(removed);
+    if (!TakeFrame(frame, shut_down_, options_.feature_budget, budget_grid_, &validator_, &features,
+                   &result, &stats_)) {
+      return result;
+    }
   }
   if (!tracker_.started()) {
     if (localization_only_) {
@@ -239,7 +166,7 @@ void SlamSystem::HandleLost(const TrackerOutput& out, const Frame& frame, size_t
   ++lost_streak_;
   if (localization_only_) return;
   const size_t keyframes = map_.Read([](const MapData& m) { return m.keyframes().size(); });
-  if (keyframes <= static_cast<size_t>(kSmallMapKeyframes) && tracked_in_map_ < kYoungMapFrames) {
+  if (IsYoungMap(keyframes, tracked_in_map_)) {
     // A map this young that loses track was initialised badly: start over without it.
     if (lost_streak_ >= kLostFramesBeforeReinit) {
       M2S_LOG(kWarning) << "lost right after initialisation; initialising again";
@@ -317,7 +244,7 @@ void SlamSystem::TryMergeSetAsideMaps() {
     const uint64_t epoch = map_.MergeInto(std::move(target.data), alignment.into_from_from);
     const MergeNotice notice{epoch, current_map_, target.id, alignment.into_from_from};
     for (Record& r : trajectory_) {
-      if (r.map_id == current_map_) MoveRecord(notice, &r);
+      if (r.map_id == current_map_) MoveRecordInto(notice, &r);
     }
     from = current_map_;
     into = target.id;
@@ -357,21 +284,11 @@ TrackResult SlamSystem::Initialise(const Frame& frame, const SortedFeatures& fea
   const KeyframeId first = map_.NextKeyframeId();
   const KeyframeId second = map_.NextKeyframeId();
   mapper_.InsertInitialMap(*initial, first, second);
-  tracker_.Start(second, initial->second.world_from_camera,
-                 static_cast<int>(initial->points.size()), frame.timestamp,
-                 MedianDepth(initial->second.world_from_camera.Inverse(), initial->points));
+  StartTracking(*initial, second, frame.timestamp, &tracker_);
   int64_t first_was_lost = 0;
   {
     std::lock_guard<std::mutex> lock(trajectory_mutex_);
-    for (Record& r : trajectory_) {
-      if (r.seq == initial->first.seq) {
-        first_was_lost += r.state == TrackingState::kLost ? 1 : 0;
-        r.state = TrackingState::kOk;
-        r.reference = first;
-        r.reference_from_camera = Pose3::Identity();
-        r.is_keyframe = true;
-      }
-    }
+    first_was_lost = MarkInitialFrame(initial->first.seq, first, current_map_, &trajectory_);
   }
   record.state = TrackingState::kOk;
   record.world_from_camera = initial->second.world_from_camera;
@@ -409,22 +326,7 @@ std::vector<TrajectoryEntry> SlamSystem::Trajectory() const {
       }
       return nullptr;  // dropped: the pose at tracking time
     };
-    for (const Record& r : trajectory_) {
-      TrajectoryEntry e;
-      e.seq = r.seq;
-      e.timestamp = r.timestamp;
-      e.state = r.state;
-      e.world_from_camera = r.world_from_camera;
-      const MapData* m = map_of(r.map_id);
-      if (r.reference && m != nullptr) {
-        if (auto ref = m->ResolveKeyframePose(*r.reference))
-          e.world_from_camera = *ref * r.reference_from_camera;
-      }
-      e.is_keyframe = r.is_keyframe;
-      e.ground_truth_world_from_camera = r.ground_truth;
-      e.map_id = r.map_id;
-      out.push_back(e);
-    }
+    for (const Record& r : trajectory_) out.push_back(ToEntry(r, map_of(r.map_id)));
   });
   return out;
 }
@@ -435,7 +337,8 @@ SystemStats SlamSystem::Stats() const {
     std::lock_guard<std::mutex> lock(stats_mutex_);
     s = stats_;
   }
-  s.frames_dropped_queue = input_.dropped();
+  s.frames_submitted = runner_.submitted();
+  s.frames_dropped_queue = runner_.dropped();
   s.mapping_queue = static_cast<int>(keyframes_.size());
   {
     std::lock_guard<std::mutex> t(trajectory_mutex_);
@@ -486,9 +389,7 @@ void SlamSystem::ResetLocked(bool keep_localization_only) {
 }
 
 void SlamSystem::Reset() {
-  std::lock_guard<std::mutex> lock(track_mutex_);
-  input_.Clear();
-  ResetLocked(/*keep_localization_only=*/false);
+  runner_.Exclusive([this] { ResetLocked(/*keep_localization_only=*/false); });
 }
 
 Status SlamSystem::SaveMap(const std::string& path) const {
@@ -496,7 +397,10 @@ Status SlamSystem::SaveMap(const std::string& path) const {
 }
 
 Status SlamSystem::LoadMap(const std::string& path) {
-  std::lock_guard<std::mutex> lock(track_mutex_);
+  return runner_.Exclusive([&] { return LoadMapLocked(path); });
+}
+
+Status SlamSystem::LoadMapLocked(const std::string& path) {
   StopMapping(/*discard_queued=*/true);
   Status status = map_.Load(path, options_.camera);
   if (!status.ok()) {
@@ -520,15 +424,7 @@ Status SlamSystem::LoadMap(const std::string& path) {
 
 void SlamSystem::Shutdown() {
   if (shut_down_.exchange(true)) return;
-  input_.Clear();
-  input_.Stop();
-  std::thread tracking;
-  {
-    std::lock_guard<std::mutex> lock(threads_mutex_);
-    tracking = std::move(tracking_thread_);
-  }
-  if (tracking.joinable()) tracking.join();
-  results_.Stop();
+  runner_.Stop();
   StopMapping(/*discard_queued=*/true);
 }
 

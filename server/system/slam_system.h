@@ -10,7 +10,7 @@
 // correction (tracking carries its pose over, as after drift correction), a global BA refines
 // the union, and the trajectory records of the merged map follow.
 //
-// Threads: Track() and the tracking thread serialise on track_mutex_; mapping runs in
+// Threads: Track() and the tracking thread serialise in runner_ (FrameRunner); mapping runs in
 // mapping_thread_ and is the map's only writer while it runs (merges included); Reset/LoadMap
 // and starting a new map stop mapping, change the map, and start it again. Shutdown stops the
 // queues (end of stream), discards queued frames and keyframes, and joins both threads.
@@ -29,6 +29,8 @@
 #include "map/map.h"
 #include "mapping/local_mapper.h"
 #include "system/bounded_queue.h"
+#include "system/frame_runner.h"
+#include "system/system_common.h"
 #include "tracking/frame_validation.h"
 #include "tracking/initializer.h"
 #include "tracking/tracker.h"
@@ -53,20 +55,7 @@ class SlamSystem final : public System {
   void Shutdown() override;
 
  private:
-  // What the trajectory keeps per frame: the pose relative to its reference keyframe, so
-  // later refinement of keyframes (BA, drift correction) refines every frame.
-  struct Record {
-    int64_t seq = 0;
-    double timestamp = 0.0;
-    TrackingState state = TrackingState::kNotInitialized;
-    Pose3 world_from_camera;  // at tracking time (used when the reference is unknown)
-    std::optional<KeyframeId> reference;
-    Pose3 reference_from_camera;
-    bool is_keyframe = false;
-    std::optional<Pose3> ground_truth;
-    int map_id = 0;                 // set by AppendRecord
-    uint64_t correction_epoch = 0;  // the world the poses are in (Map::correction())
-  };
+  using Record = TrajectoryRecord;
   // The last merge: records tracked in the merged map before it (an older correction epoch)
   // and appended after it are moved likewise.
   struct MergeNotice {
@@ -84,10 +73,10 @@ class SlamSystem final : public System {
   TrackResult TrackLocked(const Frame& frame);
   TrackResult Initialise(const Frame& frame, const SortedFeatures& features, TrackResult result);
   void ResetLocked(bool keep_localization_only);
+  Status LoadMapLocked(const std::string& path);
   void StartMapping();
   void StopMapping(bool discard_queued);
   void MappingLoop();
-  void TrackingLoop();
   // Appends the record, setting its map (the current one) and moving it into the merged
   // map's world when it was tracked just before a merge.
   void AppendRecord(Record* record);
@@ -102,7 +91,7 @@ class SlamSystem final : public System {
   // Reset/LoadMap: no set-aside maps, the next map is map 0 again.
   void ForgetMapsLocked();
   // Moves a record of map `notice.from_map` into the merged map's world.
-  static void MoveRecord(const MergeNotice& notice, Record* record);
+  static void MoveRecordInto(const MergeNotice& notice, Record* record);
 
   Options options_;
   Map map_;
@@ -116,12 +105,8 @@ class SlamSystem final : public System {
   std::optional<double> lost_since_;  // frame time of the first lost frame that counts
   int tracked_in_map_ = 0;            // frames tracked in the current map
 
-  std::mutex track_mutex_;
-  BoundedQueue<Frame> input_;
-  BoundedQueue<TrackResult> results_;
   BoundedQueue<KeyframeCandidate> keyframes_;
   std::mutex threads_mutex_;
-  std::thread tracking_thread_;
   std::thread mapping_thread_;
   std::atomic<bool> shut_down_{false};
 
@@ -137,6 +122,8 @@ class SlamSystem final : public System {
 
   mutable std::mutex stats_mutex_;
   SystemStats stats_;  // frame counters (map and queue figures are filled in by Stats())
+
+  FrameRunner runner_;  // last: constructed when everything TrackLocked() uses is
 };
 
 }  // namespace m2s::slam

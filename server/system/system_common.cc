@@ -1,0 +1,79 @@
+#include "system/system_common.h"
+
+#include "m2s/common/numeric.h"
+
+namespace m2s::slam {
+
+bool TakeFrame(const Frame& frame, bool shut_down, int feature_budget, const FeatureGrid& grid,
+               FrameValidator* validator, SortedFeatures* features, TrackResult* result,
+               SystemStats* stats) {
+  result->seq = frame.seq;
+  result->timestamp = frame.timestamp;
+  result->num_features = static_cast<int>(frame.features.size());
+  if (shut_down) {
+    result->state = TrackingState::kRejected;
+    result->reject_reason = "shut_down";
+    return false;
+  }
+  ++stats->frames_processed;
+  if (const Status valid = validator->Validate(frame, features); !valid) {
+    const char* reason = ToString(*valid.reason());
+    result->state = TrackingState::kRejected;
+    result->reject_reason = reason;
+    ++stats->frames_rejected;
+    ++stats->rejected_by_reason[reason];
+    return false;
+  }
+  stats->features_over_budget +=
+      static_cast<int64_t>(ApplyFeatureBudget(feature_budget, grid, features));
+  return true;
+}
+
+void MoveRecord(const Sim3& new_from_old, int new_map_id, TrajectoryRecord* record) {
+  record->world_from_camera = new_from_old.TransformPose(record->world_from_camera);
+  // A relative pose keeps its rotation; its translation takes the scale.
+  record->reference_from_camera =
+      Pose3(record->reference_from_camera.rotation(),
+            new_from_old.scale() * record->reference_from_camera.translation());
+  record->map_id = new_map_id;
+}
+
+int64_t MarkInitialFrame(int64_t seq, KeyframeId first, int map_id,
+                         std::vector<TrajectoryRecord>* records) {
+  int64_t was_lost = 0;
+  for (TrajectoryRecord& r : *records) {
+    if (r.seq != seq) continue;
+    was_lost += r.state == TrackingState::kLost ? 1 : 0;
+    r.state = TrackingState::kOk;
+    r.reference = first;
+    r.reference_from_camera = Pose3::Identity();
+    r.is_keyframe = true;
+    r.map_id = map_id;
+  }
+  return was_lost;
+}
+
+void StartTracking(const InitialMap& initial, KeyframeId second, double timestamp,
+                   Tracker* tracker) {
+  tracker->Start(second, initial.second.world_from_camera, static_cast<int>(initial.points.size()),
+                 timestamp,
+                 MedianDepth(initial.second.world_from_camera.Inverse(), initial.points));
+}
+
+TrajectoryEntry ToEntry(const TrajectoryRecord& record, const MapData* map) {
+  TrajectoryEntry e;
+  e.seq = record.seq;
+  e.timestamp = record.timestamp;
+  e.state = record.state;
+  e.world_from_camera = record.world_from_camera;
+  if (record.reference && map != nullptr) {
+    if (auto ref = map->ResolveKeyframePose(*record.reference))
+      e.world_from_camera = *ref * record.reference_from_camera;
+  }
+  e.is_keyframe = record.is_keyframe;
+  e.ground_truth_world_from_camera = record.ground_truth;
+  e.map_id = record.map_id;
+  return e;
+}
+
+}  // namespace m2s::slam

@@ -1,0 +1,81 @@
+// What the single-session System (slam_system.h) and the agents of a map group (map_group.h)
+// share: taking a frame in, the trajectory records and how they follow map changes, the start
+// of tracking after initialisation, and the rules for young maps and merges.
+//
+// A record keeps the pose relative to its reference keyframe, so later refinement of the
+// keyframes (BA, drift correction, merges) refines every frame; the pose at tracking time is the
+// fallback when the reference is gone.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+#include "m2s/slam/system.h"
+#include "map/map_data.h"
+#include "tracking/feature_budget.h"
+#include "tracking/frame_validation.h"
+#include "tracking/initializer.h"
+#include "tracking/tracker.h"
+
+namespace m2s::slam {
+
+struct TrajectoryRecord {
+  int64_t seq = 0;
+  double timestamp = 0.0;
+  TrackingState state = TrackingState::kNotInitialized;
+  Pose3 world_from_camera;  // at tracking time (used when the reference is unknown)
+  std::optional<KeyframeId> reference;
+  Pose3 reference_from_camera;
+  bool is_keyframe = false;
+  std::optional<Pose3> ground_truth;
+  int map_id = 0;
+  uint64_t correction_epoch = 0;  // the world the poses are in (Map::correction())
+};
+
+// A map this young (at most kSmallMapKeyframes keyframes, fewer than kYoungMapFrames frames
+// tracked in it) that stays lost kLostFramesBeforeReinit frames in a row was initialised badly:
+// it is dropped and initialisation starts over.
+constexpr int kLostFramesBeforeReinit = 10;
+constexpr int kSmallMapKeyframes = 4;
+constexpr int kYoungMapFrames = 60;
+inline bool IsYoungMap(size_t keyframes, int tracked_in_map) {
+  return keyframes <= static_cast<size_t>(kSmallMapKeyframes) && tracked_in_map < kYoungMapFrames;
+}
+// Iterations of the global bundle adjustment that refines two maps after a merge.
+constexpr int kMergeBaIterations = 15;
+
+inline bool HasPose(TrackingState state) {
+  return state == TrackingState::kOk || state == TrackingState::kRelocalized;
+}
+
+inline double MsSince(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// The start of tracking one frame: `result` gets the frame's identity, the frame is validated
+// and its features sorted and budgeted into `features`. Returns false (result filled) for a
+// frame that is not tracked: invalid, or after shutdown. Counts into `stats` (the caller holds
+// its lock): frames processed, rejected (by reason), features over the budget.
+bool TakeFrame(const Frame& frame, bool shut_down, int feature_budget, const FeatureGrid& grid,
+               FrameValidator* validator, SortedFeatures* features, TrackResult* result,
+               SystemStats* stats);
+
+// Moves a record into another map's world: x_new = new_from_old * x_old.
+void MoveRecord(const Sim3& new_from_old, int new_map_id, TrajectoryRecord* record);
+
+// After a two-view initialisation: the initial map's first frame (records with that seq) is
+// the keyframe `first` of map `map_id`. Returns how many of those records were counted lost.
+int64_t MarkInitialFrame(int64_t seq, KeyframeId first, int map_id,
+                         std::vector<TrajectoryRecord>* records);
+
+// Starts `tracker` from the initial map's second keyframe `second`.
+void StartTracking(const InitialMap& initial, KeyframeId second, double timestamp,
+                   Tracker* tracker);
+
+// The record's current estimate: through its reference keyframe in `map` (nullptr: the map is
+// gone, the pose at tracking time).
+TrajectoryEntry ToEntry(const TrajectoryRecord& record, const MapData* map);
+
+}  // namespace m2s::slam
