@@ -431,3 +431,5 @@ XrResult XRAPI_CALL GetActionStateFloat(XrSession session, const XrActionStateGe
 
 }  // namespace api
 }  // namespace m2s::xrsim
+
+#undef M2S_SIM_ACTION_STATE
