@@ -7,9 +7,8 @@
 // The controller buttons are OpenXR actions (xr_actions.h): created with the instance,
 // attached to every session, synced in BeginFrame; TakeControllerPresses() hands the presses on.
 // The frame loop is BeginFrame (xrWaitFrame, xrBeginFrame, sync actions, locate the VIEW space
-// and the eyes),
-// RenderEye per eye (acquire, wait, draw into the eye's framebuffer, release), EndFrame
-// (one projection layer, or none when the runtime says not to render).
+// and the eyes), RenderEye per eye (acquire, wait, draw into the eye's framebuffer, release),
+// EndFrame (one projection layer, or none when the runtime says not to render).
 //
 // Thread-safety: one thread (the render thread, with the app's GLES context current) calls
 // everything. Not copyable. The destructor destroys every handle in order (swapchains, spaces,
