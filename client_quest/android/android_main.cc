@@ -31,6 +31,8 @@ void ApplyConfig(const std::string& path, m2s::xr::XrClientOptions* options) {
   options->projector = j.value("projector", options->projector);
   options->stage_space = j.value("stage", options->stage_space);
   options->overlay = j.value("overlay", options->overlay);
+  options->show_other_keyframes = j.value("other_keyframes", options->show_other_keyframes);
+  options->map_group = j.value("map_group", options->map_group);
   options->draw_mesh = j.value("mesh_visible", options->draw_mesh);
   if (auto events = m2s::xr::ParseControlEvents(j.value("events", std::string())); events) {
     options->events = *events;

@@ -78,9 +78,10 @@ class SimRuntimeTest : public ::testing::Test {
     fs::create_directories(dir_);
     setenv("XR_RUNTIME_JSON", M2S_XR_SIM_RUNTIME_JSON, 1);
     setenv("M2S_XR_SIM_REPORT", (dir_ / "report.json").c_str(), 1);
-    for (const char* name : {"M2S_XR_SIM_TRAJECTORY", "M2S_XR_SIM_SCRIPT", "M2S_XR_SIM_CAPTURE_DIR",
-                             "M2S_XR_SIM_CAPTURE_FRAMES", "M2S_XR_SIM_RATE_HZ",
-                             "M2S_XR_SIM_EYE_SIZE", "M2S_XR_SIM_IPD_M", "M2S_XR_SIM_FOV_DEG"}) {
+    for (const char* name :
+         {"M2S_XR_SIM_TRAJECTORY", "M2S_XR_SIM_SCRIPT", "M2S_XR_SIM_CAPTURE_DIR",
+          "M2S_XR_SIM_CAPTURE_FRAMES", "M2S_XR_SIM_RATE_HZ", "M2S_XR_SIM_EYE_SIZE",
+          "M2S_XR_SIM_IPD_M", "M2S_XR_SIM_FOV_DEG", "M2S_XR_SIM_INPUT", "M2S_XR_SIM_CONTROLLER"}) {
       unsetenv(name);
     }
   }
@@ -92,14 +93,18 @@ class SimRuntimeTest : public ::testing::Test {
     if (instance_ != XR_NULL_HANDLE) xrDestroyInstance(instance_);
   }
 
-  void CreateInstance(bool enable_egl = true) {
+  XrResult TryCreateInstance(bool enable_egl = true) {
     XrInstanceCreateInfo info{XR_TYPE_INSTANCE_CREATE_INFO};
     std::snprintf(info.applicationInfo.applicationName, XR_MAX_APPLICATION_NAME_SIZE, "sim_test");
     info.applicationInfo.apiVersion = XR_MAKE_VERSION(1, 0, 0);
     const char* extensions[] = {XR_MNDX_EGL_ENABLE_EXTENSION_NAME};
     info.enabledExtensionCount = enable_egl ? 1 : 0;
     info.enabledExtensionNames = extensions;
-    ASSERT_EQ(xrCreateInstance(&info, &instance_), XR_SUCCESS);
+    return xrCreateInstance(&info, &instance_);
+  }
+
+  void CreateInstance(bool enable_egl = true) {
+    ASSERT_EQ(TryCreateInstance(enable_egl), XR_SUCCESS);
     XrSystemGetInfo get{XR_TYPE_SYSTEM_GET_INFO};
     get.formFactor = XR_FORM_FACTOR_HEAD_MOUNTED_DISPLAY;
     ASSERT_EQ(xrGetSystem(instance_, &get, &system_), XR_SUCCESS);
@@ -195,6 +200,13 @@ class SimRuntimeTest : public ::testing::Test {
     return state;
   }
 
+  // Ends the running session the way an app asks for it, then DestroyAll().
+  void EndAndDestroyAll() {
+    ASSERT_EQ(xrRequestExitSession(session_), XR_SUCCESS);
+    ASSERT_EQ(xrEndSession(session_), XR_SUCCESS);
+    DestroyAll();
+  }
+
   void DestroyAll() {
     EXPECT_EQ(xrDestroySwapchain(swapchain_), XR_SUCCESS);
     EXPECT_EQ(xrDestroySpace(local_), XR_SUCCESS);
@@ -213,6 +225,12 @@ class SimRuntimeTest : public ::testing::Test {
     nlohmann::json report;
     if (file) file >> report;
     return report;
+  }
+
+  XrPath Path(const char* path) {
+    XrPath p = XR_NULL_PATH;
+    EXPECT_EQ(xrStringToPath(instance_, path, &p), XR_SUCCESS) << path;
+    return p;
   }
 
   fs::path dir_;

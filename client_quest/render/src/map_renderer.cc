@@ -77,8 +77,9 @@ bool FiniteColor(const Eigen::Vector4f& c) {
 }  // namespace
 
 Status MapRendererOptions::Check() const {
-  for (const Eigen::Vector4f* c : {&background, &mesh_color, &wireframe_color, &point_color,
-                                   &keyframe_color, &estimate_color, &ground_truth_color}) {
+  for (const Eigen::Vector4f* c :
+       {&background, &mesh_color, &wireframe_color, &point_color, &keyframe_color,
+        &other_keyframe_color, &estimate_color, &ground_truth_color}) {
     if (!FiniteColor(*c)) return Status::Error("renderer colours must be RGBA in [0, 1]");
   }
   if (!(point_size_px > 0.f) || !std::isfinite(point_size_px))
@@ -201,6 +202,9 @@ void MapRenderer::SetMapPoints(const std::vector<Eigen::Vector3f>& points) {
 void MapRenderer::SetKeyframes(const std::vector<Pose3>& world_from_keyframes) {
   keyframes_ = world_from_keyframes;
 }
+void MapRenderer::SetOtherKeyframes(const std::vector<Pose3>& world_from_keyframes) {
+  other_keyframes_ = world_from_keyframes;
+}
 void MapRenderer::SetEstimatedPose(std::optional<Pose3> world_from_camera) {
   estimate_ = world_from_camera;
 }
@@ -277,19 +281,23 @@ Status MapRenderer::Draw(const Eigen::Matrix4f& view, const Eigen::Matrix4f& pro
   line_scratch_.clear();
   for (const Pose3& keyframe : keyframes_) AppendFrustum(keyframe, &line_scratch_);
   const size_t keyframe_lines = line_scratch_.size();
+  for (const Pose3& keyframe : other_keyframes_) AppendFrustum(keyframe, &line_scratch_);
+  const size_t other_lines = line_scratch_.size() - keyframe_lines;
   if (ground_truth_) AppendFrustum(*ground_truth_, &line_scratch_);
-  const size_t ground_truth_lines = line_scratch_.size() - keyframe_lines;
+  const size_t ground_truth_first = keyframe_lines + other_lines;
+  const size_t ground_truth_lines = line_scratch_.size() - ground_truth_first;
   if (estimate_) AppendFrustum(*estimate_, &line_scratch_);
-  const size_t estimate_lines = line_scratch_.size() - keyframe_lines - ground_truth_lines;
+  const size_t estimate_lines = line_scratch_.size() - ground_truth_first - ground_truth_lines;
   if (!line_scratch_.empty()) {
     Upload(GL_ARRAY_BUFFER, lines_.id(), line_scratch_.data(),
            line_scratch_.size() * sizeof(Eigen::Vector3f), &lines_capacity_);
     glLineWidth(options_.line_width_px);
     glBindVertexArray(line_vertex_array_.id());
     DrawLines(0, keyframe_lines, options_.keyframe_color);
-    DrawLines(keyframe_lines, ground_truth_lines, options_.ground_truth_color);
+    DrawLines(keyframe_lines, other_lines, options_.other_keyframe_color);
+    DrawLines(ground_truth_first, ground_truth_lines, options_.ground_truth_color);
     // The estimate last: where it coincides with the ground truth, it shows.
-    DrawLines(keyframe_lines + ground_truth_lines, estimate_lines, options_.estimate_color);
+    DrawLines(ground_truth_first + ground_truth_lines, estimate_lines, options_.estimate_color);
   }
 
   if (num_points_ > 0) {

@@ -3,7 +3,7 @@
 //
 //   m2s_xr_client [--config FILE.json] [--mesh FILE] [--on-device | --lcm-url URL]
 //                 [--projector gpu|cpu] [--width W --height H --fov-deg F] [--stage]
-//                 [--frames N] [--events reset@N,overlay@N,quit@N] [--keys]
+//                 [--frames N] [--events reset@N,overlay@N,others@N,quit@N] [--keys]
 //                 [--no-overlay] [--no-mesh] [--no-occlusion] [--budget N] [--noise-px S] [--seed
 //                 N]
 //                 [--key-file FILE [--encrypt]] [--out DIR]
@@ -12,8 +12,10 @@
 //   {"mesh": "", "transport": "on-device" | "lcm", "lcm_url": "udpm://...?ttl=0",
 //    "key_file": "/path/to/bus.key", "encrypt": false,
 //    "projector": "gpu", "occlusion": true, "camera": {"width": 640, "height": 480, "fov_deg": 90},
-//    "stage": false, "frames": 0, "events": "", "overlay": true, "mesh_visible": true,
-//    "out": "out"}
+//    "stage": false, "frames": 0, "events": "", "overlay": true, "other_keyframes": true,
+//    "mesh_visible": true, "map_group": "", "out": "out"}
+// "map_group" names the shared map the SLAM session joins (sent in its HELLO); empty: a map of
+// its own. Controller buttons (OpenXR actions) work whatever the config; see xr_actions.h.
 // Flags given on the command line override the file.
 #include <fstream>
 #include <iostream>
@@ -61,6 +63,8 @@ bool ApplyConfig(const std::string& path, XrClientOptions* options, std::string*
     options->max_frames = j.value("frames", options->max_frames);
     *events = j.value("events", *events);
     options->overlay = j.value("overlay", options->overlay);
+    options->show_other_keyframes = j.value("other_keyframes", options->show_other_keyframes);
+    options->map_group = j.value("map_group", options->map_group);
     options->draw_mesh = j.value("mesh_visible", options->draw_mesh);
     options->out_dir = j.value("out", options->out_dir);
   } catch (const nlohmann::json::exception& e) {
@@ -89,7 +93,8 @@ int main(int argc, char** argv) {
   auto* stage_flag = app.add_flag("--stage", stage, "world space STAGE instead of LOCAL");
   auto* frames_flag = app.add_option("--frames", frames, "request exit after N frames");
   auto* events_flag = app.add_option("--events", events, "scripted controls, e.g. reset@200");
-  app.add_flag("--keys", keys, "read r (reset) / o (overlay) / q (quit) from stdin");
+  app.add_flag("--keys", keys,
+               "read r (reset) / o (overlay) / k (other agents' keyframes) / q (quit) from stdin");
   auto* overlay_flag = app.add_flag("--no-overlay", no_overlay, "start with the overlay off");
   auto* mesh_flag = app.add_flag("--no-mesh", no_mesh, "do not draw the scene mesh");
   bool no_occlusion = false;

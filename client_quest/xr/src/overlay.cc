@@ -4,6 +4,19 @@
 
 namespace m2s::xr {
 
+KeyframeGroups GroupKeyframes(const std::vector<client::ReplicaKeyframe>& keyframes,
+                              bool show_others) {
+  KeyframeGroups groups;
+  for (const client::ReplicaKeyframe& k : keyframes) {
+    if (k.own) {
+      groups.own.push_back(k.world_from_camera);
+    } else if (show_others) {
+      groups.others.push_back(k.world_from_camera);
+    }
+  }
+  return groups;
+}
+
 void Overlay::Reset() {
   world_from_slam_.reset();
   map_revision_ = -1;
@@ -15,17 +28,18 @@ void Overlay::Reset() {
 }
 
 void Overlay::Update(const client::ClientSession& session, bool refresh_alignment, bool visible,
-                     MapRenderer* renderer) {
+                     bool show_other_keyframes, MapRenderer* renderer) {
+  if (show_other_keyframes != show_other_keyframes_) {
+    show_other_keyframes_ = show_other_keyframes;
+    dirty_ = true;
+  }
   const client::MapReplica& replica = session.replica();
   if (replica.revision() != map_revision_ || replica.session_id() != map_session_) {
     const client::MapSnapshot map = replica.Snapshot();
     map_revision_ = map.revision;
     map_session_ = map.session_id;
     points_slam_ = map.points;
-    keyframes_slam_.clear();
-    for (const client::ReplicaKeyframe& k : map.keyframes) {
-      keyframes_slam_.push_back(k.world_from_camera);
-    }
+    keyframes_slam_ = map.keyframes;
     dirty_ = true;
   }
   if (refresh_alignment) {
@@ -47,7 +61,7 @@ void Overlay::Update(const client::ClientSession& session, bool refresh_alignmen
   if (!dirty_) return;
   dirty_ = false;
   points_.clear();
-  keyframes_.clear();
+  keyframes_ = {};
   std::optional<Pose3> estimate;
   if (visible && world_from_slam_) {
     const Sim3& s = *world_from_slam_;
@@ -55,11 +69,14 @@ void Overlay::Update(const client::ClientSession& session, bool refresh_alignmen
     for (const Eigen::Vector3f& p : points_slam_) {
       points_.push_back((s * p.cast<double>()).cast<float>());
     }
-    for (const Pose3& k : keyframes_slam_) keyframes_.push_back(s.TransformPose(k));
+    keyframes_ = GroupKeyframes(keyframes_slam_, show_other_keyframes_);
+    for (Pose3& k : keyframes_.own) k = s.TransformPose(k);
+    for (Pose3& k : keyframes_.others) k = s.TransformPose(k);
     if (estimate_slam_) estimate = s.TransformPose(*estimate_slam_);
   }
   renderer->SetMapPoints(points_);
-  renderer->SetKeyframes(keyframes_);
+  renderer->SetKeyframes(keyframes_.own);
+  renderer->SetOtherKeyframes(keyframes_.others);
   renderer->SetEstimatedPose(estimate);
   renderer->SetGroundTruthPose(visible ? ground_truth_ : std::nullopt);
 }

@@ -68,7 +68,7 @@ EGLConfig ConfigOf(EGLDisplay display, EGLContext context) {
   return n == 1 ? config : nullptr;
 }
 
-// Non-blocking read of control keys from stdin (one per line: r, o, q).
+// Non-blocking read of control keys from stdin (one per line: r, o, k, q).
 std::vector<ControlEvent::Kind> ReadKeys() {
   std::vector<ControlEvent::Kind> keys;
   pollfd fd{STDIN_FILENO, POLLIN, 0};
@@ -77,6 +77,7 @@ std::vector<ControlEvent::Kind> ReadKeys() {
     if (read(STDIN_FILENO, &c, 1) != 1) break;
     if (c == 'r') keys.push_back(ControlEvent::Kind::kReset);
     if (c == 'o') keys.push_back(ControlEvent::Kind::kToggleOverlay);
+    if (c == 'k') keys.push_back(ControlEvent::Kind::kToggleOtherKeyframes);
     if (c == 'q') keys.push_back(ControlEvent::Kind::kQuit);
   }
   return keys;
@@ -100,6 +101,7 @@ Expected<SlamLink> OpenLink(const XrClientOptions& options, uint64_t seed, doubl
   client::ClientSessionOptions session_options;
   session_options.camera = options.camera;
   session_options.client_name = "m2s_xr_client";
+  session_options.map_group = options.map_group;
   session_options.session_seed = seed;
   session_options.hello_timeout_s = hello_timeout_s;
   link.session = std::make_unique<client::ClientSession>(link.transport.get(), session_options);
@@ -122,10 +124,12 @@ Expected<std::vector<ControlEvent>> ParseControlEvents(const std::string& text) 
       e.kind = ControlEvent::Kind::kReset;
     } else if (name == "overlay") {
       e.kind = ControlEvent::Kind::kToggleOverlay;
+    } else if (name == "others") {
+      e.kind = ControlEvent::Kind::kToggleOtherKeyframes;
     } else if (name == "quit") {
       e.kind = ControlEvent::Kind::kQuit;
     } else {
-      return Status::Error("unknown control event '" + item + "' (reset, overlay, quit)");
+      return Status::Error("unknown control event '" + item + "' (reset, overlay, others, quit)");
     }
     char* end = nullptr;
     const std::string frame = at == std::string::npos ? "" : item.substr(at + 1);
@@ -195,8 +199,9 @@ class XrRun {
   std::unique_ptr<XrSessionDriver> xr_;
   Overlay overlay_;
   bool overlay_visible_ = true;
+  bool other_keyframes_visible_ = true;
   bool exit_requested_ = false;
-  int64_t resets_ = 0, toggles_ = 0;
+  int64_t resets_ = 0, toggles_ = 0, other_toggles_ = 0;
   XrTime first_display_time_ = 0, last_display_time_ = 0;
   std::vector<double> projection_ms_, handoff_ms_, overlay_ms_, frame_ms_;
   XrClientResult result_;
@@ -206,6 +211,7 @@ Expected<std::unique_ptr<XrRun>> XrRun::Create(const XrClientOptions& options,
                                                XrPlatform* platform) {
   std::unique_ptr<XrRun> run(new XrRun(options));
   run->overlay_visible_ = options.overlay;
+  run->other_keyframes_visible_ = options.show_other_keyframes;
   // The app's GLES context: the runtime renders from its swapchains, the projector computes in
   // it, the renderer draws in it. Current on this (the render) thread throughout.
   auto gl = GlContext::CreateHeadless();
@@ -268,6 +274,19 @@ std::vector<ControlEvent::Kind> XrRun::PendingControls() {
   if (options_.stdin_keys) {
     for (ControlEvent::Kind k : ReadKeys()) controls.push_back(k);
   }
+  for (ControllerAction a : xr_->TakeControllerPresses()) {
+    switch (a) {
+      case ControllerAction::kResetSlam:
+        controls.push_back(ControlEvent::Kind::kReset);
+        break;
+      case ControllerAction::kToggleOverlay:
+        controls.push_back(ControlEvent::Kind::kToggleOverlay);
+        break;
+      case ControllerAction::kToggleOtherKeyframes:
+        controls.push_back(ControlEvent::Kind::kToggleOtherKeyframes);
+        break;
+    }
+  }
   return controls;
 }
 
@@ -277,6 +296,10 @@ Status XrRun::ApplyControls() {
       overlay_visible_ = !overlay_visible_;
       ++toggles_;
       M2S_LOG(kInfo) << "overlay " << (overlay_visible_ ? "on" : "off");
+    } else if (k == ControlEvent::Kind::kToggleOtherKeyframes) {
+      other_keyframes_visible_ = !other_keyframes_visible_;
+      ++other_toggles_;
+      M2S_LOG(kInfo) << "other agents' keyframes " << (other_keyframes_visible_ ? "on" : "off");
     } else if (k == ControlEvent::Kind::kQuit && !exit_requested_) {
       exit_requested_ = true;
       xr_->RequestExit();
@@ -325,7 +348,7 @@ Status XrRun::RenderFrame() {
   }
   const auto t2 = Clock::now();
   overlay_.Update(*link_->session, frame.index % options_.align_every_frames == 0, overlay_visible_,
-                  renderer_.get());
+                  other_keyframes_visible_, renderer_.get());
   overlay_ms_.push_back(MsSince(t2));
   if (frame.should_render) {
     for (int eye = 0; eye < 2; ++eye) {
@@ -357,6 +380,7 @@ Expected<XrClientResult> XrRun::Finish() {
           : 0.0;
   result_.sessions = xr_->sessions_created();
   result_.instance_lost = xr_->instance_lost();
+  result_.controller_presses = xr_->controller_presses();
   const std::string xr_error = xr_->error();
   const std::vector<std::string> state_log = xr_->state_log();
   const std::string runtime_name = xr_->runtime_name();
@@ -412,6 +436,9 @@ Status XrRun::WriteOutputs(const reporting::RunInfo& info, const reporting::RunM
                                {"openxr_sessions", result_.sessions},
                                {"slam_sessions", result_.slam_sessions},
                                {"overlay_toggles", toggles_},
+                               {"other_keyframe_toggles", other_toggles_},
+                               {"controller_presses", result_.controller_presses},
+                               {"map_group", options_.map_group},
                                {"instance_lost", result_.instance_lost},
                                {"ate_rmse", result_.ate_rmse},
                                {"map_points", metrics.map_points},

@@ -66,6 +66,9 @@ Expected<std::unique_ptr<XrSessionDriver>> XrSessionDriver::Create(const XrSessi
   std::unique_ptr<XrSessionDriver> driver(new XrSessionDriver(options, platform, egl));
   if (Status s = driver->CreateInstance(); !s) return s;
   if (Status s = driver->GetSystem(); !s) return s;
+  auto controls = ControllerActions::Create(driver->instance_);
+  if (!controls) return controls.status();
+  driver->controls_ = std::move(*controls);
   if (Status s = driver->CreateSession(); !s) return s;
   return driver;
 }
@@ -77,6 +80,7 @@ XrSessionDriver::~XrSessionDriver() {
     M2S_LOG(kWarning) << "OpenXR session still running at shutdown";
   }
   DestroySession();
+  controls_.reset();
   if (instance_ != XR_NULL_HANDLE) xrDestroyInstance(instance_);
 }
 
@@ -165,6 +169,9 @@ Status XrSessionDriver::CreateSession() {
   ++sessions_created_;
   session_lost_ = false;
   state_ = XR_SESSION_STATE_UNKNOWN;
+  if (XrResult r = controls_->Attach(session_); XR_FAILED(r)) {
+    return Status::Error("xrAttachSessionActionSets failed: " + ResultString(instance_, r));
+  }
   XrReferenceSpaceCreateInfo space{XR_TYPE_REFERENCE_SPACE_CREATE_INFO};
   space.poseInReferenceSpace.orientation.w = 1.f;
   space.referenceSpaceType =
@@ -311,6 +318,11 @@ bool XrSessionDriver::BeginFrame(FrameInfo* frame) {
   if (!Check(xrBeginFrame(session_, nullptr), "xrBeginFrame")) return false;
   frame_begun_ = true;
   frame->index = frames_begun_++;
+  const size_t presses_before = pressed_.size();
+  if (const XrResult r = controls_->Sync(session_, &pressed_); r != XR_SESSION_NOT_FOCUSED) {
+    Check(r, "xrSyncActions");
+  }
+  controller_presses_ += static_cast<int64_t>(pressed_.size() - presses_before);
   frame->display_time = state.predictedDisplayTime;
   frame->should_render = state.shouldRender == XR_TRUE;
   frame->view_valid = false;
@@ -391,6 +403,12 @@ bool XrSessionDriver::EndFrame(const FrameInfo& frame) {
   end.layerCount = (frame.should_render && eyes_[0].rendered && eyes_[1].rendered) ? 1 : 0;
   end.layers = layers;
   return Check(xrEndFrame(session_, &end), "xrEndFrame");
+}
+
+std::vector<ControllerAction> XrSessionDriver::TakeControllerPresses() {
+  std::vector<ControllerAction> pressed;
+  pressed.swap(pressed_);
+  return pressed;
 }
 
 void XrSessionDriver::RequestExit() {

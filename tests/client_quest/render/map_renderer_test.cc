@@ -113,6 +113,26 @@ TEST_F(MapRendererTest, FrustumLinesCrossExpectedPixels) {
   EXPECT_TRUE(PixelIs(image, 320, 200, options.background));  // inside, between the lines
 }
 
+TEST_F(MapRendererTest, OtherAgentsKeyframesHaveTheirOwnColour) {
+  MapRendererOptions options;
+  options.frustum_depth_m = 0.5;
+  ASSERT_NE(Rgba(options.keyframe_color), Rgba(options.other_keyframe_color));
+  auto renderer = MapRenderer::Create(options);
+  ASSERT_TRUE(renderer) << renderer.error();
+  (*renderer)->SetFrustumCamera(camera_);
+  // As above: this agent's keyframe 2 m ahead, another agent's 1 m to the right of it.
+  (*renderer)->SetKeyframes({Pose3(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0, 0, 2))});
+  (*renderer)->SetOtherKeyframes({Pose3(Eigen::Quaterniond::Identity(), Eigen::Vector3d(1, 0, 2))});
+  RgbaImage image = Render(**renderer, Pose3::Identity());
+  EXPECT_TRUE(NearPixelIs(image, 384, 240, 1, options.keyframe_color));
+  EXPECT_FALSE(NearPixelIs(image, 384, 240, 1, options.other_keyframe_color));
+  EXPECT_TRUE(NearPixelIs(image, 584, 240, 1, options.other_keyframe_color));
+  EXPECT_FALSE(NearPixelIs(image, 584, 240, 1, options.keyframe_color));
+  (*renderer)->SetOtherKeyframes({});
+  image = Render(**renderer, Pose3::Identity());
+  EXPECT_TRUE(PixelIs(image, 584, 240, options.background));
+}
+
 TEST_F(MapRendererTest, ShadedAndWireframeMesh) {
   // A quad 3 m ahead spanning x, y in [-1, 1]: u, v in [153.3, 486.7] x [73.3, 406.7].
   const std::vector<Eigen::Vector3f> positions = {{-1, -1, 3}, {1, -1, 3}, {1, 1, 3}, {-1, 1, 3}};

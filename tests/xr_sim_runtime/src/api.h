@@ -42,7 +42,19 @@ namespace m2s::xrsim::api {
   X(ReleaseSwapchainImage)                \
   X(WaitFrame)                            \
   X(BeginFrame)                           \
-  X(EndFrame)
+  X(EndFrame)                             \
+  X(StringToPath)                         \
+  X(PathToString)                         \
+  X(CreateActionSet)                      \
+  X(DestroyActionSet)                     \
+  X(CreateAction)                         \
+  X(DestroyAction)                        \
+  X(SuggestInteractionProfileBindings)    \
+  X(AttachSessionActionSets)              \
+  X(GetCurrentInteractionProfile)         \
+  X(SyncActions)                          \
+  X(GetActionStateBoolean)                \
+  X(GetActionStateFloat)
 
 XrResult XRAPI_CALL EnumerateInstanceExtensionProperties(const char* layerName, uint32_t capacity,
                                                          uint32_t* count,
@@ -107,6 +119,26 @@ XrResult XRAPI_CALL ReleaseSwapchainImage(XrSwapchain swapchain,
 XrResult XRAPI_CALL WaitFrame(XrSession session, const XrFrameWaitInfo* info, XrFrameState* state);
 XrResult XRAPI_CALL BeginFrame(XrSession session, const XrFrameBeginInfo* info);
 XrResult XRAPI_CALL EndFrame(XrSession session, const XrFrameEndInfo* info);
+XrResult XRAPI_CALL StringToPath(XrInstance instance, const char* path_string, XrPath* path);
+XrResult XRAPI_CALL PathToString(XrInstance instance, XrPath path, uint32_t capacity,
+                                 uint32_t* count, char* buffer);
+XrResult XRAPI_CALL CreateActionSet(XrInstance instance, const XrActionSetCreateInfo* info,
+                                    XrActionSet* action_set);
+XrResult XRAPI_CALL DestroyActionSet(XrActionSet action_set);
+XrResult XRAPI_CALL CreateAction(XrActionSet action_set, const XrActionCreateInfo* info,
+                                 XrAction* action);
+XrResult XRAPI_CALL DestroyAction(XrAction action);
+XrResult XRAPI_CALL SuggestInteractionProfileBindings(
+    XrInstance instance, const XrInteractionProfileSuggestedBinding* suggested);
+XrResult XRAPI_CALL AttachSessionActionSets(XrSession session,
+                                            const XrSessionActionSetsAttachInfo* info);
+XrResult XRAPI_CALL GetCurrentInteractionProfile(XrSession session, XrPath top_level_user_path,
+                                                 XrInteractionProfileState* profile);
+XrResult XRAPI_CALL SyncActions(XrSession session, const XrActionsSyncInfo* info);
+XrResult XRAPI_CALL GetActionStateBoolean(XrSession session, const XrActionStateGetInfo* info,
+                                          XrActionStateBoolean* state);
+XrResult XRAPI_CALL GetActionStateFloat(XrSession session, const XrActionStateGetInfo* info,
+                                        XrActionStateFloat* state);
 
 }  // namespace m2s::xrsim::api
 
@@ -121,6 +153,12 @@ XrResult XRAPI_CALL EndFrame(XrSession session, const XrFrameEndInfo* info);
     M2S_SIM_REQUIRE((ptr)->type == (xr_type), XR_ERROR_VALIDATION_FAILURE,           \
                     std::string(what ".type is not " #xr_type));                     \
   } while (0)
+// Instance lookup shared by the instance-level functions; lost instances answer
+// XR_ERROR_INSTANCE_LOST (not misuse: the runtime caused it).
+#define M2S_SIM_INSTANCE(var, handle)                                             \
+  InstanceObj* var = Runtime::Get().FindInstance(handle);                         \
+  M2S_SIM_REQUIRE(var != nullptr, XR_ERROR_HANDLE_INVALID, "unknown XrInstance"); \
+  if (var->lost) return XR_ERROR_INSTANCE_LOST
 // Session lookup shared by the session-level functions: a lost instance or session answers
 // XR_ERROR_INSTANCE_LOST / XR_ERROR_SESSION_LOST (the runtime caused it: not misuse).
 #define M2S_SIM_SESSION(var, inst, handle)                                       \
@@ -129,3 +167,24 @@ XrResult XRAPI_CALL EndFrame(XrSession session, const XrFrameEndInfo* info);
   InstanceObj* inst = Runtime::Get().InstanceOf(*var);                           \
   if (inst->lost) return XR_ERROR_INSTANCE_LOST;                                 \
   if (var->lost) return XR_ERROR_SESSION_LOST
+
+namespace m2s::xrsim::api {
+
+// The two-call idiom (spec 2.11): capacity 0 asks for the count.
+template <typename T, typename Fill>
+XrResult TwoCall(const char* kFn, uint32_t capacity, uint32_t* count, T* items, uint32_t n,
+                 Fill fill) {
+  M2S_SIM_REQUIRE(count != nullptr, XR_ERROR_VALIDATION_FAILURE, "count output is NULL");
+  *count = n;
+  if (capacity == 0) return XR_SUCCESS;
+  M2S_SIM_REQUIRE(capacity >= n, XR_ERROR_SIZE_INSUFFICIENT,
+                  "capacity " + std::to_string(capacity) + " < " + std::to_string(n));
+  M2S_SIM_REQUIRE(items != nullptr, XR_ERROR_VALIDATION_FAILURE, "array is NULL");
+  for (uint32_t i = 0; i < n; ++i) {
+    const XrResult r = fill(i, &items[i]);
+    if (XR_FAILED(r)) return r;
+  }
+  return XR_SUCCESS;
+}
+
+}  // namespace m2s::xrsim::api

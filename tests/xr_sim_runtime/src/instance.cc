@@ -7,30 +7,6 @@
 namespace m2s::xrsim::api {
 namespace {
 
-// The two-call idiom (spec 2.11): capacity 0 asks for the count.
-template <typename T, typename Fill>
-XrResult TwoCall(const char* kFn, uint32_t capacity, uint32_t* count, T* items, uint32_t n,
-                 Fill fill) {
-  M2S_SIM_REQUIRE(count != nullptr, XR_ERROR_VALIDATION_FAILURE, "count output is NULL");
-  *count = n;
-  if (capacity == 0) return XR_SUCCESS;
-  M2S_SIM_REQUIRE(capacity >= n, XR_ERROR_SIZE_INSUFFICIENT,
-                  "capacity " + std::to_string(capacity) + " < " + std::to_string(n));
-  M2S_SIM_REQUIRE(items != nullptr, XR_ERROR_VALIDATION_FAILURE, "array is NULL");
-  for (uint32_t i = 0; i < n; ++i) {
-    const XrResult r = fill(i, &items[i]);
-    if (XR_FAILED(r)) return r;
-  }
-  return XR_SUCCESS;
-}
-
-// Instance lookup shared by the instance-level functions; lost instances answer
-// XR_ERROR_INSTANCE_LOST (not misuse: the runtime caused it).
-#define M2S_SIM_INSTANCE(var, handle)                                             \
-  InstanceObj* var = Runtime::Get().FindInstance(handle);                         \
-  M2S_SIM_REQUIRE(var != nullptr, XR_ERROR_HANDLE_INVALID, "unknown XrInstance"); \
-  if (var->lost) return XR_ERROR_INSTANCE_LOST
-
 #define M2S_SIM_SYSTEM(instance, system_id)                                                        \
   M2S_SIM_REQUIRE((system_id) == kSystemId && (instance)->system_queried, XR_ERROR_SYSTEM_INVALID, \
                   "systemId was not returned by xrGetSystem")
@@ -135,6 +111,11 @@ XrResult XRAPI_CALL DestroyInstance(XrInstance instance) {
     }
     ++live_children;
     it = rt.sessions.erase(it);
+  }
+  for (auto it = rt.action_sets.begin(); it != rt.action_sets.end();) {
+    const XrActionSet set = it->second->handle;
+    ++it;
+    if (rt.FindActionSet(set)->instance == instance) live_children += rt.EraseActionSet(set);
   }
   if (live_children > 0) {
     rt.MisuseWithoutError(

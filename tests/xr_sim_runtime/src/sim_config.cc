@@ -6,6 +6,8 @@
 #include <fstream>
 #include <sstream>
 
+#include "interaction_profiles.h"
+
 namespace m2s::xrsim {
 namespace {
 
@@ -151,7 +153,66 @@ bool ReadConfigFromEnvironment(SimConfig* config, std::string* why) {
     }
   }
   if (const char* v = Env("M2S_XR_SIM_REPORT")) config->report_path = v;
+  if (const char* v = Env("M2S_XR_SIM_CONTROLLER")) {
+    if (!KnownProfile(v)) {
+      *why = std::string("M2S_XR_SIM_CONTROLLER must be ") + kTouchController + " or " +
+             kSimpleController + ", got '" + v + "'";
+      return false;
+    }
+    config->interaction_profile = v;
+  }
+  if (const char* v = Env("M2S_XR_SIM_INPUT")) {
+    config->input_path = v;
+    if (!config->input.Load(v, config->interaction_profile, why)) return false;
+  }
   return true;
+}
+
+bool InputScript::Load(const std::string& path, const std::string& profile, std::string* why) {
+  changes_.clear();
+  std::ifstream file(path);
+  if (!file) {
+    *why = "M2S_XR_SIM_INPUT: cannot open '" + path + "'";
+    return false;
+  }
+  std::string line;
+  for (int line_number = 1; std::getline(file, line); ++line_number) {
+    const size_t first = line.find_first_not_of(" \t\r");
+    if (first == std::string::npos || line[first] == '#') continue;
+    std::istringstream fields(line);
+    std::string frame_text, input, value_text, extra;
+    int64_t frame = 0;
+    double value = 0.0;
+    const std::string where = path + ":" + std::to_string(line_number) + ": ";
+    if (!(fields >> frame_text >> input >> value_text) || (fields >> extra) ||
+        !ParseInt(frame_text, &frame) || frame < 0 || !ParseDouble(value_text, &value) ||
+        value < 0.0 || value > 1.0) {
+      *why = where + "expected '<frame >= 0> <input path> <value in [0, 1]>'";
+      return false;
+    }
+    if (!ScriptableInput(profile, input)) {
+      *why = where + "'" + input + "' is not a /click, /touch or /value input of " + profile;
+      return false;
+    }
+    changes_[input].emplace_back(frame, static_cast<float>(value));
+  }
+  for (auto& [input, changes] : changes_) {
+    // Stable: of two lines for one frame, the later one wins.
+    std::stable_sort(changes.begin(), changes.end(),
+                     [](const auto& a, const auto& b) { return a.first < b.first; });
+  }
+  return true;
+}
+
+float InputScript::ValueAt(const std::string& input_path, int64_t frame) const {
+  const auto it = changes_.find(input_path);
+  if (it == changes_.end()) return 0.f;
+  float value = 0.f;
+  for (const auto& [at, v] : it->second) {
+    if (at > frame) break;
+    value = v;
+  }
+  return value;
 }
 
 bool HeadTrajectory::Load(const std::string& path, std::string* why) {

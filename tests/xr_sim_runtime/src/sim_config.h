@@ -30,14 +30,29 @@
 //                          written to DIR/left_<frame>.png (upright, RGBA) with
 //                          DIR/left_<frame>.json (the submitted view pose in the layer's space,
 //                          fov, rect, display time, the played head pose in LOCAL).
+//   M2S_XR_SIM_CONTROLLER  the interaction profile both hands hold (default
+//                          /interaction_profiles/oculus/touch_controller; or
+//                          /interaction_profiles/khr/simple_controller). It becomes the session's
+//                          current profile on xrAttachSessionActionSets if the app suggested
+//                          bindings for it; otherwise actions have no bindings (inactive).
+//   M2S_XR_SIM_INPUT       a file of scripted button states, one change per line:
+//                            <frame> <input path> <value>
+//                          e.g. "120 /user/hand/right/input/a/click 1": from frame 120 (the
+//                          xrWaitFrame count, as in M2S_XR_SIM_SCRIPT) the input reads 1 until a
+//                          later line changes it. Values are in [0, 1] (buttons 0 or 1); an
+//                          input reads 0 before its first line. Paths are the /click, /touch and
+//                          /value inputs of M2S_XR_SIM_CONTROLLER; '#' starts a comment line.
+//                          xrSyncActions samples the inputs at the last waited frame.
 //   M2S_XR_SIM_REPORT      path of a JSON report written on xrDestroyInstance (misuse count and
 //                          messages, handles left alive, frames, state transitions).
 //   M2S_XR_SIM_VERBOSE     1: log every state change and event to stderr.
 #pragma once
 
 #include <cstdint>
+#include <map>
 #include <set>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -50,6 +65,18 @@ struct ScriptEvent {
   Kind kind = Kind::kExit;
   int64_t frame = 0;
   int64_t duration = 0;  // frames, for kFocusLoss and kHide
+};
+
+// Scripted input values: for each input path, (frame, value) changes sorted by frame.
+class InputScript {
+ public:
+  // Loads the file (format in the header comment). False with "path:line: reason".
+  bool Load(const std::string& path, const std::string& profile, std::string* why);
+  // The input's value at a frame: that of its last change at or before it (0 before any).
+  float ValueAt(const std::string& input_path, int64_t frame) const;
+
+ private:
+  std::map<std::string, std::vector<std::pair<int64_t, float>>> changes_;
 };
 
 struct SimConfig {
@@ -68,6 +95,9 @@ struct SimConfig {
   int64_t capture_every = 0;
   std::string report_path;
   bool verbose = false;
+  std::string interaction_profile = "/interaction_profiles/oculus/touch_controller";
+  std::string input_path;
+  InputScript input;
 
   bool ShouldCapture(int64_t frame) const {
     if (capture_dir.empty()) return false;

@@ -56,7 +56,16 @@ struct Counters {
   int64_t swapchains_destroyed = 0;
   int64_t implicitly_destroyed = 0;  // children freed with their parent, not by the app
   int64_t gl_failures = 0;
+  int64_t action_sets_created = 0;
+  int64_t action_sets_destroyed = 0;
+  int64_t actions_created = 0;
+  int64_t actions_destroyed = 0;
+  int64_t action_syncs = 0;            // xrSyncActions calls that succeeded
+  int64_t action_syncs_unfocused = 0;  // ... of which answered XR_SESSION_NOT_FOCUSED
 };
+
+// An interaction profile's suggested bindings: (action, input path) pairs.
+using Bindings = std::vector<std::pair<XrAction, XrPath>>;
 
 struct InstanceObj {
   XrInstance handle = XR_NULL_HANDLE;
@@ -77,6 +86,10 @@ struct InstanceObj {
   int64_t misuse_at_create = 0;
   std::vector<std::string> transitions;  // "frame N: STATE"
   std::vector<std::string> captures;
+  // Semantic paths (xrStringToPath): XrPath n names path_strings[n - 1].
+  std::vector<std::string> path_strings;
+  std::map<std::string, XrPath> paths;
+  std::map<XrPath, Bindings> suggested_bindings;  // by interaction profile
 
   XrDuration period_ns() const { return static_cast<XrDuration>(1e9 / config.rate_hz + 0.5); }
   XrTime DisplayTime(int64_t frame) const { return time_origin + frame * period_ns(); }
@@ -102,6 +115,39 @@ struct SessionObj {
   bool frame_begun = false;   // xrBeginFrame returned, xrEndFrame not yet called
   int64_t waited_frame = -1;
   int64_t begun_frame = -1;
+  // Actions (xrAttachSessionActionSets, once per session).
+  bool actions_attached = false;
+  std::vector<XrActionSet> attached_action_sets;
+  XrPath interaction_profile = XR_NULL_PATH;  // of both hands; XR_NULL_PATH: no bindings
+  Bindings bindings;                          // those suggested for interaction_profile
+};
+
+struct ActionSetObj {
+  XrActionSet handle = XR_NULL_HANDLE;
+  XrInstance instance = XR_NULL_HANDLE;
+  std::string name;
+  std::string localized_name;
+  uint32_t priority = 0;
+  bool attached = false;  // to any session: then immutable (no new actions, no suggestions)
+};
+
+// The state of an action as of the last xrSyncActions, for one subaction path (XR_NULL_PATH:
+// every binding).
+struct ActionState {
+  float value = 0.f;  // boolean actions: 0 or 1
+  bool changed = false;
+  bool active = false;
+  XrTime last_change_time = 0;
+};
+
+struct ActionObj {
+  XrAction handle = XR_NULL_HANDLE;
+  XrActionSet action_set = XR_NULL_HANDLE;
+  std::string name;
+  std::string localized_name;
+  XrActionType type = XR_ACTION_TYPE_BOOLEAN_INPUT;
+  std::vector<XrPath> subaction_paths;
+  std::map<XrPath, ActionState> states;  // by subaction path, XR_NULL_PATH included
 };
 
 struct SpaceObj {
@@ -134,6 +180,8 @@ class Runtime {
   std::map<uint64_t, std::unique_ptr<SessionObj>> sessions;
   std::map<uint64_t, std::unique_ptr<SpaceObj>> spaces;
   std::map<uint64_t, std::unique_ptr<SwapchainObj>> swapchains;
+  std::map<uint64_t, std::unique_ptr<ActionSetObj>> action_sets;
+  std::map<uint64_t, std::unique_ptr<ActionObj>> actions;
 
   // Logs "m2s_xr_sim: MISUSE #n in FUNCTION: RESULT: message", counts it, returns result.
   XrResult Misuse(const char* function, XrResult result, const std::string& message);
@@ -146,7 +194,11 @@ class Runtime {
   SessionObj* FindSession(XrSession h) { return Find(sessions, h); }
   SpaceObj* FindSpace(XrSpace h) { return Find(spaces, h); }
   SwapchainObj* FindSwapchain(XrSwapchain h) { return Find(swapchains, h); }
+  ActionSetObj* FindActionSet(XrActionSet h) { return Find(action_sets, h); }
+  ActionObj* FindAction(XrAction h) { return Find(actions, h); }
   InstanceObj* InstanceOf(const SessionObj& s) { return FindInstance(s.instance); }
+  // Destroys an action set and its actions; returns how many handles that was.
+  int64_t EraseActionSet(XrActionSet h);
 
  private:
   template <typename Map, typename Handle>
@@ -196,6 +248,11 @@ class ScopedAppContext {
 // Writes the left-eye image of a projection layer (see M2S_XR_SIM_CAPTURE_* in sim_config.h).
 void CaptureLeftEye(InstanceObj& instance, SessionObj& session,
                     const XrCompositionLayerProjection& layer, int64_t frame);
+// The path of a string (interned: equal strings, equal paths), and back (nullptr: not a path
+// of this instance).
+XrPath InternPath(InstanceObj& instance, const std::string& path);
+const std::string* PathString(const InstanceObj& instance, XrPath path);
+
 // Writes the JSON report and prints the one-line summary; called by xrDestroyInstance.
 void WriteReport(const InstanceObj& instance, int64_t live_children);
 

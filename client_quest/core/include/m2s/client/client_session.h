@@ -46,6 +46,8 @@ struct ClientSessionOptions {
   // Ask the server for deterministic SLAM (HELLO flag), for --fast runs and their replays.
   bool deterministic = false;
   std::string client_name = "m2s_client";
+  // The map group the session joins, sent in its HELLO (empty: a map of its own).
+  std::string map_group;
   // How long Start() waits for HELLO_ACK (frames also open the session, so this is not fatal).
   double hello_timeout_s = 2.0;
   // Least time between two resync requests while the replica has a gap.

@@ -52,10 +52,11 @@ struct MapRendererOptions {
   Eigen::Vector4f background = {0.08f, 0.08f, 0.10f, 1.f};
   Eigen::Vector4f mesh_color = {0.78f, 0.78f, 0.74f, 1.f};
   Eigen::Vector4f wireframe_color = {0.55f, 0.55f, 0.60f, 1.f};
-  Eigen::Vector4f point_color = {1.f, 0.15f, 0.15f, 1.f};       // map points: red
-  Eigen::Vector4f keyframe_color = {0.2f, 0.45f, 1.f, 1.f};     // keyframes: blue
-  Eigen::Vector4f estimate_color = {0.1f, 0.95f, 0.2f, 1.f};    // estimated pose: green
-  Eigen::Vector4f ground_truth_color = {1.f, 0.65f, 0.f, 1.f};  // ground truth: orange
+  Eigen::Vector4f point_color = {1.f, 0.15f, 0.15f, 1.f};          // map points: red
+  Eigen::Vector4f keyframe_color = {0.2f, 0.45f, 1.f, 1.f};        // keyframes: blue
+  Eigen::Vector4f other_keyframe_color = {0.9f, 0.2f, 0.9f, 1.f};  // other agents': magenta
+  Eigen::Vector4f estimate_color = {0.1f, 0.95f, 0.2f, 1.f};       // estimated pose: green
+  Eigen::Vector4f ground_truth_color = {1.f, 0.65f, 0.f, 1.f};     // ground truth: orange
   float point_size_px = 3.f;     // diameter of a map point, in pixels (> 0)
   float line_width_px = 1.f;     // requested frustum line width (drivers may cap it at 1)
   double frustum_depth_m = 0.1;  // distance from the apex to the drawn image rectangle (> 0)
@@ -80,6 +81,8 @@ class MapRenderer {
                  const std::vector<uint32_t>& triangles);
   void SetMapPoints(const std::vector<Eigen::Vector3f>& points);
   void SetKeyframes(const std::vector<Pose3>& world_from_keyframes);
+  // Keyframes of other agents sharing the map, drawn in other_keyframe_color.
+  void SetOtherKeyframes(const std::vector<Pose3>& world_from_keyframes);
   void SetEstimatedPose(std::optional<Pose3> world_from_camera);
   void SetGroundTruthPose(std::optional<Pose3> world_from_camera);
   // The camera whose image rectangle the frusta show (default: Camera{}).
@@ -102,7 +105,7 @@ class MapRenderer {
 
   MapRendererOptions options_;
   Camera frustum_camera_;
-  std::vector<Pose3> keyframes_;
+  std::vector<Pose3> keyframes_, other_keyframes_;
   std::optional<Pose3> estimate_, ground_truth_;
   std::vector<Eigen::Vector3f> line_scratch_;
 

@@ -11,8 +11,9 @@
 // hand-off and overlay is measured per frame and reported (p50/p95) at exit and in
 // xr_metrics.json.
 //
-// Controls (a controller button on the headset; here keys on stdin or scripted events):
-// reset SLAM (a new session: the map starts again), toggle the overlay, quit.
+// Controls (controller buttons through OpenXR actions, xr_actions.h; keys on stdin; scripted
+// events): reset SLAM (a new session: the map starts again), toggle the overlay, toggle other
+// agents' keyframes (drawn in their own colour, or hidden), quit.
 //
 //   XrClientOptions options;  // default scene, on-device, GPU projector
 //   auto platform = xr::MakePlatform(nullptr);
@@ -36,12 +37,12 @@
 namespace m2s::xr {
 
 struct ControlEvent {
-  enum class Kind { kReset, kToggleOverlay, kQuit };
+  enum class Kind { kReset, kToggleOverlay, kToggleOtherKeyframes, kQuit };
   Kind kind = Kind::kQuit;
   int64_t frame = 0;  // frame index (frames begun) at which it fires
 };
 
-// Parses "reset@200,overlay@250,quit@400" (names: reset, overlay, quit).
+// Parses "reset@200,overlay@250,others@300,quit@400" (names: reset, overlay, others, quit).
 Expected<std::vector<ControlEvent>> ParseControlEvents(const std::string& text);
 
 struct XrClientOptions {
@@ -59,11 +60,14 @@ struct XrClientOptions {
   server_app::ServerOptions server;  // the on-device server
   bool stage_space = false;          // world = STAGE instead of LOCAL
   bool overlay = true;               // draw map points, keyframes and poses at start
+  bool show_other_keyframes = true;  // draw other agents' keyframes (own colour) at start
+  // The map group the SLAM session joins (HELLO); empty: a map of its own.
+  std::string map_group;
   bool draw_mesh = true;             // draw the scene mesh (the virtual world)
   int max_frames = 0;                // request exit after this many frames (0: runtime decides)
   std::vector<ControlEvent> events;  // scripted controls
-  bool stdin_keys = false;           // r: reset, o: overlay, q: quit (one key per line)
-  int align_every_frames = 15;       // how often the overlay's Sim3 alignment is refreshed
+  bool stdin_keys = false;      // r: reset, o: overlay, k: other keyframes, q: quit (one per line)
+  int align_every_frames = 15;  // how often the overlay's Sim3 alignment is refreshed
   double final_pose_timeout_s = 5.0;
   std::string out_dir = "out";
   // Called once per loop iteration on the render thread (the Android looper); returning false
@@ -81,8 +85,9 @@ struct XrClientResult {
   int64_t frames = 0;       // frames begun
   int64_t frames_sent = 0;  // frames projected and handed to the transport
   int64_t frames_rendered = 0;
-  int64_t sessions = 0;       // OpenXR sessions created (more than 1 after a session loss)
-  int64_t slam_sessions = 0;  // client sessions (1 + resets)
+  int64_t sessions = 0;            // OpenXR sessions created (more than 1 after a session loss)
+  int64_t slam_sessions = 0;       // client sessions (1 + resets)
+  int64_t controller_presses = 0;  // OpenXR action presses (each applied as a control)
   bool instance_lost = false;
   double ate_rmse = -1.0;  // from the run outputs (Sim3-aligned)
   TimingStats projection, handoff, overlay, frame;

@@ -4,9 +4,11 @@
 //   IDLE -> READY (xrBeginSession) -> SYNCHRONIZED -> VISIBLE -> FOCUSED, and back;
 //   STOPPING (xrEndSession), EXITING (leave the loop), LOSS_PENDING (destroy the session and
 //   create a new one once the system is available again), instance loss (leave the loop).
-// The frame loop is BeginFrame (xrWaitFrame, xrBeginFrame, locate the VIEW space and the eyes),
-// RenderEye per eye (acquire, wait, draw into the eye's framebuffer, release), EndFrame
-// (one projection layer, or none when the runtime says not to render).
+// The controller buttons are OpenXR actions (xr_actions.h): created with the instance,
+// attached to every session, synced in BeginFrame; TakeControllerPresses() hands the presses on.
+// The frame loop is BeginFrame (xrWaitFrame, xrBeginFrame, sync actions, locate the VIEW space
+// and the eyes), RenderEye per eye (acquire, wait, draw into the eye's framebuffer, release),
+// EndFrame (one projection layer, or none when the runtime says not to render).
 //
 // Thread-safety: one thread (the render thread, with the app's GLES context current) calls
 // everything. Not copyable. The destructor destroys every handle in order (swapchains, spaces,
@@ -31,6 +33,7 @@
 #include "m2s/common/geometry.h"
 #include "m2s/common/status.h"
 #include "m2s/xr/axis_conversion.h"
+#include "m2s/xr/xr_actions.h"
 #include "m2s/xr/xr_platform.h"
 
 namespace m2s::xr {
@@ -91,6 +94,8 @@ class XrSessionDriver {
   bool EndFrame(const FrameInfo& frame);
   // Asks the runtime to stop the session (the states then lead to EXITING).
   void RequestExit();
+  // The controller buttons pressed since the last call, in order.
+  std::vector<ControllerAction> TakeControllerPresses();
 
   // The recommended eye image size.
   int eye_width() const { return eye_width_; }
@@ -100,6 +105,7 @@ class XrSessionDriver {
   bool instance_lost() const { return instance_lost_; }
   int64_t sessions_created() const { return sessions_created_; }
   int64_t frames_begun() const { return frames_begun_; }
+  int64_t controller_presses() const { return controller_presses_; }
   // Every state change seen, in order ("XR_SESSION_STATE_READY", ...).
   const std::vector<std::string>& state_log() const { return state_log_; }
 
@@ -131,6 +137,8 @@ class XrSessionDriver {
   XrSpace world_space_ = XR_NULL_HANDLE;
   XrSpace view_space_ = XR_NULL_HANDLE;
   std::array<EyeSwapchain, 2> eyes_;
+  std::unique_ptr<ControllerActions> controls_;
+  std::vector<ControllerAction> pressed_;
   int eye_width_ = 0;
   int eye_height_ = 0;
   int64_t swapchain_format_ = 0;
@@ -145,6 +153,7 @@ class XrSessionDriver {
   std::string runtime_name_;
   int64_t sessions_created_ = 0;
   int64_t frames_begun_ = 0;
+  int64_t controller_presses_ = 0;
   std::vector<std::string> state_log_;
 };
 
