@@ -96,6 +96,14 @@ Status MapGroupImpl::SaveMap(const std::string& path) const {
 }
 
 Status MapGroupImpl::LoadMap(const std::string& path) {
+  return Load(path, /*localization_only=*/true);
+}
+
+Status MapGroupImpl::ResumeMap(const std::string& path) {
+  return Load(path, /*localization_only=*/false);
+}
+
+Status MapGroupImpl::Load(const std::string& path, bool localization_only) {
   {
     std::lock_guard<std::mutex> lock(agents_mutex_);
     if (!agents_.empty())
@@ -104,7 +112,9 @@ Status MapGroupImpl::LoadMap(const std::string& path) {
   }
   std::lock_guard<std::mutex> mapping(mapping_mutex_);
   if (Status status = map_.Load(path, options_.camera); !status.ok()) return status;
-  localization_only_ = true;
+  localization_only_ = localization_only;
+  std::lock_guard<std::mutex> lock(agents_mutex_);
+  keyframe_owner_.clear();  // made by agents of an earlier server: nobody's own
   return Status::Ok();
 }
 

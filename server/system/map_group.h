@@ -60,6 +60,7 @@ class MapGroupImpl final : public MapGroup, public std::enable_shared_from_this<
   const Options& options() const override { return options_; }
   Status SaveMap(const std::string& path) const override;
   Status LoadMap(const std::string& path) override;
+  Status ResumeMap(const std::string& path) override;
 
   // ---- for the agents ----
   Map& map() { return map_; }
@@ -99,6 +100,7 @@ class MapGroupImpl final : public MapGroup, public std::enable_shared_from_this<
   GroupAgent* FindAgent(int index) const;
   void MarkOwner(KeyframeId id, int agent);
   void SetOwnFlags(int agent, MapDelta* delta) const;
+  Status Load(const std::string& path, bool localization_only);
 
   const Options options_;
   Map map_;

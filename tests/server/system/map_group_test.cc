@@ -269,6 +269,43 @@ TEST(MapGroup, ASavedGroupMapServesAnotherGroupInLocalisationOnlyMode) {
   std::remove(path.c_str());
 }
 
+TEST(MapGroup, AResumedMapIsExtendedInTheSameWorld) {
+  // A server maps the first half of a walk and saves; a restarted one resumes the map and an
+  // agent walks the second half: it relocalises in the saved map and extends it, and its poses
+  // continue the first agent's in one world.
+  const std::vector<Frame> walk = Walk(/*seed=*/10, /*duration_s=*/8.0);
+  const std::vector<Frame> first_half = Window(walk, 0, 130);
+  const std::vector<Frame> second_half = Window(walk, 110, 130);
+  const std::string path = ::testing::TempDir() + "/map_group_resume_test.m2smap";
+  std::vector<TrajectoryEntry> before;
+  int saved_keyframes = 0;
+  {
+    std::shared_ptr<MapGroup> group = MakeGroup();
+    std::unique_ptr<System> a = JoinGroup(*group);
+    for (const Frame& f : first_half) a->Track(f);
+    before = a->Trajectory();
+    ASSERT_TRUE(group->SaveMap(path).ok());
+    saved_keyframes = group->Stats().keyframes;
+  }
+  std::shared_ptr<MapGroup> restarted = MakeGroup();
+  ASSERT_TRUE(restarted->ResumeMap(path).ok());
+  EXPECT_FALSE(restarted->Stats().localization_only);
+  std::unique_ptr<System> b = JoinGroup(*restarted);
+  const TrackResult first = b->Track(second_half[0]);
+  EXPECT_EQ(first.state, TrackingState::kRelocalized);
+  for (size_t i = 1; i < second_half.size(); ++i) b->Track(second_half[i]);
+  EXPECT_EQ(CountLost(*b), 0);
+  EXPECT_EQ(b->Stats().maps_created, 1);
+  EXPECT_GT(restarted->Stats().keyframes, saved_keyframes);  // extended
+  std::vector<TrajectoryEntry> joint = b->Trajectory();
+  for (const TrajectoryEntry& e : before) {
+    if (Posed(e)) joint.push_back(e);
+  }
+  const AteResult ate = ComputeAte(joint);
+  EXPECT_LT(ate.rmse, 1e-3);
+  std::remove(path.c_str());
+}
+
 TEST(MapGroup, MapsInItsOwnMappingThreadWithTwoAgentsSubmittingConcurrently) {
   // B walks A's path one second behind it.
   const std::vector<Frame> walk = Walk(/*seed=*/9, /*duration_s=*/6.0);

@@ -202,6 +202,10 @@ class MapGroup {
   // relocalise and track in it and never change it. Loading fails while agents are active.
   virtual Status SaveMap(const std::string& path) const = 0;
   virtual Status LoadMap(const std::string& path) = 0;
+  // Loads a saved map and keeps mapping into it (a server restarted after it stopped: its
+  // agents relocalise in the map they built before and extend it). Fails while agents are
+  // active.
+  virtual Status ResumeMap(const std::string& path) = 0;
 };
 
 }  // namespace m2s::slam
