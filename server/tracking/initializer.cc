@@ -162,66 +162,6 @@ MotionCheck CheckMotion(const MeasurementModel& model, const Matches& m,
   return out;
 }
 
-}  // namespace
-
-std::optional<MotionUncertainty> TwoViewMotionUncertainty(
-    const Camera& camera, double pixel_sigma, const Pose3& camera1_from_camera0,
-    const std::vector<Eigen::Vector3d>& points_camera0) {
-  const Eigen::Matrix3d r = camera1_from_camera0.RotationMatrix();
-  const Eigen::Vector3d t = camera1_from_camera0.translation();
-  const double baseline = t.norm();
-  if (!(baseline > 0.0) || points_camera0.size() < 3) return std::nullopt;
-  // Two unit directions across the baseline: perturbations of the direction, in radians.
-  Eigen::Vector3d e1 = t.unitOrthogonal();
-  Eigen::Vector3d e2 = t.normalized().cross(e1);
-  auto projection_jacobian = [&camera](const Eigen::Vector3d& p) {
-    Eigen::Matrix<double, 2, 3> j;
-    const double iz = 1.0 / p.z();
-    j << camera.fx * iz, 0.0, -camera.fx * p.x() * iz * iz, 0.0, camera.fy * iz,
-        -camera.fy * p.y() * iz * iz;
-    return j;
-  };
-  Eigen::Matrix<double, 5, 5> information = Eigen::Matrix<double, 5, 5>::Zero();
-  for (const Eigen::Vector3d& x : points_camera0) {
-    const Eigen::Vector3d rx = r * x;
-    const Eigen::Vector3d p1 = rx + t;
-    if (!(x.z() > 0.0) || !(p1.z() > 0.0)) continue;
-    const Eigen::Matrix<double, 2, 3> j0 = projection_jacobian(x);
-    const Eigen::Matrix<double, 2, 3> j1 = projection_jacobian(p1);
-    Eigen::Matrix<double, 3, 5> dp_dmotion;
-    Eigen::Matrix3d rx_hat;
-    rx_hat << 0.0, -rx.z(), rx.y(), rx.z(), 0.0, -rx.x(), -rx.y(), rx.x(), 0.0;
-    dp_dmotion << -rx_hat, baseline * e1, baseline * e2;
-    const Eigen::Matrix<double, 2, 5> a = j1 * dp_dmotion;
-    const Eigen::Matrix<double, 2, 3> b1 = j1 * r;
-    const Eigen::Matrix3d h_ll = j0.transpose() * j0 + b1.transpose() * b1;
-    const Eigen::Matrix<double, 5, 3> h_pl = a.transpose() * b1;
-    Eigen::LDLT<Eigen::Matrix3d> h_ll_ldlt(h_ll);
-    if (h_ll_ldlt.info() != Eigen::Success) continue;
-    information += a.transpose() * a - h_pl * h_ll_ldlt.solve(h_pl.transpose());
-  }
-  information /= pixel_sigma * pixel_sigma;
-  Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 5, 5>> eig(information);
-  if (eig.info() != Eigen::Success || !(eig.eigenvalues().minCoeff() > 0.0)) {
-    return MotionUncertainty{INFINITY, INFINITY};
-  }
-  const Eigen::Matrix<double, 5, 5> covariance = eig.eigenvectors() *
-                                                 eig.eigenvalues().cwiseInverse().asDiagonal() *
-                                                 eig.eigenvectors().transpose();
-  MotionUncertainty out;
-  out.rotation_rad =
-      std::sqrt(Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(covariance.topLeftCorner<3, 3>())
-                    .eigenvalues()
-                    .maxCoeff());
-  out.direction_rad =
-      std::sqrt(Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(covariance.bottomRightCorner<2, 2>())
-                    .eigenvalues()
-                    .maxCoeff());
-  return out;
-}
-
-namespace {
-
 // ReconstructTwoView without the boundary that turns OpenCV's exceptions into a refusal.
 std::optional<TwoViewReconstruction> ReconstructTwoViewUnguarded(
     const MeasurementModel& model, const InitializerOptions& options, const SortedFeatures& view0,

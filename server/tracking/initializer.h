@@ -30,6 +30,7 @@
 
 #include "m2s/slam/system.h"
 #include "tracking/frame_validation.h"
+#include "tracking/motion_uncertainty.h"
 
 namespace m2s::slam {
 
@@ -64,19 +65,6 @@ struct TwoViewRefusal {
 std::optional<TwoViewReconstruction> ReconstructTwoView(
     const MeasurementModel& model, const InitializerOptions& options, const SortedFeatures& view0,
     const SortedFeatures& view1, TwoViewRefusal* refusal, double* median_parallax_deg = nullptr);
-
-// Standard deviations (radians) of the relative motion of two views: the rotation, and the
-// direction of the translation (its length is the monocular scale), for image noise
-// `pixel_sigma` on the points' projections. The inverse of the motion's Fisher information with
-// the points marginalised (Schur complement); a motion the views leave unconstrained gives
-// infinities. nullopt without translation or with fewer than 3 points.
-struct MotionUncertainty {
-  double rotation_rad = 0.0;
-  double direction_rad = 0.0;
-};
-std::optional<MotionUncertainty> TwoViewMotionUncertainty(
-    const Camera& camera, double pixel_sigma, const Pose3& camera1_from_camera0,
-    const std::vector<Eigen::Vector3d>& points_camera0);
 
 struct InitialFrame {
   int64_t seq = 0;

@@ -92,7 +92,10 @@ void BM_TrackFrame(benchmark::State& state) {
   std::vector<slam::Frame> frames((*source)->size());
   double features = 0.0;
   for (size_t i = 0; i < frames.size(); ++i) {
-    (*source)->MakeFrame(i, &frames[i]);
+    if (const Status made = (*source)->MakeFrame(i, &frames[i]); !made.ok()) {
+      state.SkipWithError(made.message().c_str());
+      return;
+    }
     features += frames[i].features.size();
   }
 

@@ -157,7 +157,9 @@ TEST(MultiMap, MergesWithMappingInItsOwnThread) {
   EXPECT_EQ(run.stats.frames_in_unmerged_maps, 0);
   EXPECT_LE(run.lost_with_features, 20);
   for (const TrajectoryEntry& e : run.trajectory) {
-    if (Posed(e)) EXPECT_EQ(e.map_id, run.stats.current_map) << "frame " << e.seq;
+    if (Posed(e)) {
+      EXPECT_EQ(e.map_id, run.stats.current_map) << "frame " << e.seq;
+    }
   }
   EXPECT_LT(ComputeAte(run.trajectory).rmse, 1e-5);
 }
