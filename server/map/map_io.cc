@@ -281,6 +281,32 @@ Status Map::Save(const std::string& path, const Camera& camera) const {
   return Status::Ok();
 }
 
+Expected<Camera> ReadMapFileCamera(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return Status::Error("cannot open map file: " + path);
+  constexpr size_t kHeader = 8 + 4 + 2 * 4 + 4 * 8;  // magic, version, camera
+  std::vector<uint8_t> bytes(kHeader);
+  in.read(reinterpret_cast<char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+  Reader r(bytes.data(), static_cast<size_t>(in.gcount()));
+  uint32_t version = 0;
+  if (!r.GetMagic(kMagic)) return Status::Error("bad map file " + path + ": not a Mesh2SLAM map");
+  if (!r.Get(&version) || version < kOldestReadableVersion || version > kVersion) {
+    return Status::Error("bad map file " + path + ": unsupported version");
+  }
+  int32_t width = 0, height = 0;
+  Camera camera;
+  if (!r.Get(&width) || !r.Get(&height) || !r.Get(&camera.fx) || !r.Get(&camera.fy) ||
+      !r.Get(&camera.cx) || !r.Get(&camera.cy)) {
+    return Status::Error("bad map file " + path + ": truncated camera");
+  }
+  camera.width = width;
+  camera.height = height;
+  if (Status valid = camera.Check(); !valid) {
+    return valid.Prefixed("bad map file " + path + ": camera: ");
+  }
+  return camera;
+}
+
 Status Map::Load(const std::string& path, const Camera& camera) {
   std::ifstream in(path, std::ios::binary);
   std::error_code ec;

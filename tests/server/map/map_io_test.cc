@@ -2,6 +2,7 @@
 // the file does not hold.
 #include <cstdio>
 #include <cstring>
+#include <fstream>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -32,6 +33,32 @@ TEST(Map, SaveLoadRoundTrip) {
   });
   EXPECT_TRUE(loaded.TakeDelta().full);
   std::remove(path.c_str());
+}
+
+TEST(MapIo, TheCameraOfAMapFileIsReadBackWithoutLoadingIt) {
+  Map map;
+  Populate(&map);
+  const Camera camera = Camera::FromHorizontalFov(1280, 720, 75.0);
+  const std::string path = ::testing::TempDir() + "/m2s_map_camera_test.m2smap";
+  ASSERT_TRUE(map.Save(path, camera).ok());
+  const Expected<Camera> read = ReadMapFileCamera(path);
+  ASSERT_TRUE(read.ok()) << read.error();
+  EXPECT_EQ(read->width, 1280);
+  EXPECT_EQ(read->height, 720);
+  EXPECT_EQ(read->fx, camera.fx);
+  EXPECT_EQ(read->fy, camera.fy);
+  EXPECT_EQ(read->cx, camera.cx);
+  EXPECT_EQ(read->cy, camera.cy);
+  // The camera read back loads the file (Load compares it with the file's).
+  Map loaded;
+  EXPECT_TRUE(loaded.Load(path, *read).ok());
+  // Not a map, truncated, missing: clear errors.
+  std::ofstream(path, std::ios::binary | std::ios::trunc) << "M2SMAP01";
+  EXPECT_NE(ReadMapFileCamera(path).error().find("bad map file"), std::string::npos);
+  std::ofstream(path, std::ios::binary | std::ios::trunc) << "not a map at all, no";
+  EXPECT_NE(ReadMapFileCamera(path).error().find("not a Mesh2SLAM map"), std::string::npos);
+  std::remove(path.c_str());
+  EXPECT_NE(ReadMapFileCamera(path).error().find("cannot open"), std::string::npos);
 }
 
 TEST(Map, LoadRejectsBadFilesWithClearErrors) {

@@ -159,6 +159,10 @@ class System {
   virtual void Shutdown() = 0;
 };
 
+// The camera a saved map file was made with (size and intrinsics; near and far are the
+// defaults): the camera of the System or MapGroup that is to load it.
+Expected<Camera> ReadMapFileCamera(const std::string& path);
+
 struct GroupStats {
   int agents_joined = 0;  // every Join() so far
   int agents_active = 0;  // joined and not yet shut down
