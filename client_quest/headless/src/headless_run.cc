@@ -90,6 +90,7 @@ Expected<HeadlessResult> RunHeadless(const HeadlessOptions& options) {
   session_options.camera = options.camera;
   session_options.deterministic = options.fast;
   session_options.session_seed = options.session_seed;
+  session_options.map_group = options.map_group;
   client::ClientSession session(transport.get(), session_options);
   if (Status s = session.Start(); !s) return s;
 
@@ -160,6 +161,8 @@ Expected<HeadlessResult> RunHeadless(const HeadlessOptions& options) {
   info.resync_requests = result.counters.resync_requests;
   info.bus_refused = result.counters.refused_by_transport;
   info.foreign_server_messages = result.counters.foreign_server_messages;
+  info.map_group = options.map_group;
+  info.servers_seen = result.counters.servers_seen;
   auto metrics =
       reporting::WriteRunOutputs(options.out_dir, records, map, &scene, options.camera, info);
   if (!metrics) return metrics.status();
