@@ -150,8 +150,13 @@ Expected<int64_t> ClientSession::Send(wire::FeatureFrame frame) {
   }
   std::vector<uint8_t> bytes;
   int64_t seq = 0;
+  bool hold = false;
   {
     std::lock_guard<std::mutex> lock(mutex_);
+    // A group session's frames wait for the acknowledgement: an unsharded server would open a
+    // session without the group from a frame that overtook the HELLO.
+    hold = !acked_ && !options_.map_group.empty();
+    if (hold) ++counters_.frames_held;
     seq = next_seq_++;
     frame.session_id = session_id_;
     frame.seq = seq - session_first_seq_ + 1;
@@ -174,6 +179,7 @@ Expected<int64_t> ClientSession::Send(wire::FeatureFrame frame) {
     record.encoded_bytes = bytes.size();
     records_.push_back(record);
   }
+  if (hold) return seq;  // recorded, never answered
   Status published = transport_->Publish(wire::kFrameChannel, bytes);
   if (!published) return published;
   return seq;

@@ -151,6 +151,7 @@ void SessionManager::HandleSessionControl(const void* data, size_t size, uint64_
           MakeSessionMessage(session_control_t::HELLO_ACK, m.session_id, server_instance());
       ack.camera = wire::ToMessage(session->camera());
       ack.flags = m.flags;
+      ack.map_group = m.map_group;
       Publish(wire::kSessionChannel, wire::Encode(ack));
       break;
     }

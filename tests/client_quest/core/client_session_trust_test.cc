@@ -192,7 +192,13 @@ TEST(ClientSessionTrustTest, HelloIsRepeatedUntilAnsweredAndNamesTheMapGroup) {
   ASSERT_TRUE(session.Send(Frame(3)).ok());  // no repeats once acknowledged
   EXPECT_EQ(transport.hellos, 3);
   EXPECT_EQ(transport.map_group, "room-a");
+  // The frames before the acknowledgement were held back (a group session's frames must not
+  // reach a server before its HELLO).
+  ASSERT_EQ(transport.frames.size(), 2u);
+  EXPECT_EQ(transport.frames[0].seq, 3);
+  EXPECT_FALSE(session.Records()[0].answered);
   const ClientCounters c = session.Counters();
+  EXPECT_EQ(c.frames_held, 2);
   EXPECT_EQ(c.hellos_sent, 3);
   EXPECT_EQ(c.servers_seen, 1);
   EXPECT_EQ(c.sessions_started, 1);

@@ -1,14 +1,17 @@
 // ClientSession: one client's conversation with a SLAM server over any Transport.
 //
 // Start() opens the transport and says HELLO (with the camera, the map group to join if any
-// and, for reproducible runs, the FLAG_DETERMINISTIC flag), repeated every hello_resend_s until
-// a HELLO_ACK or a REJECTED arrives (Start() waits up to hello_timeout_s for it, Send() keeps
-// repeating it): a sharded server (m2s_server --shard) opens sessions only from a HELLO and
-// ignores frames that come before it, and only the server of the session's shard answers; Send()
-// stamps and publishes encoded frames (sequence numbers restart at 1 in every session); pose
-// estimates are matched to the frames by sequence number (latency = pose received - frame sent,
-// both on this client's steady clock); map deltas keep a MapReplica current, a revision gap
-// triggers a rate-limited RESYNC_REQUEST.
+// and, for reproducible runs, the FLAG_DETERMINISTIC flag). The HELLO is repeated every
+// hello_resend_s until a HELLO_ACK or a REJECTED arrives (Start() waits up to hello_timeout_s
+// for it, Send() keeps repeating it): a sharded server (m2s_server --shard) opens sessions only
+// from a HELLO and ignores frames that come before it, and only the server of the session's
+// shard answers. A session with a map group sends no frame before the acknowledgement (such
+// frames are recorded, never answered: frames_held).
+//
+// Send() stamps and publishes encoded frames (sequence numbers restart at 1 in every session);
+// pose estimates are matched to the frames by sequence number (latency = pose received - frame
+// sent, both on this client's steady clock); map deltas keep a MapReplica current, a revision
+// gap triggers a rate-limited RESYNC_REQUEST.
 //
 // Trust: the session belongs to the server instance whose HELLO_ACK answered it. Poses, map
 // deltas, SESSION_ENDED and REJECTED from any other instance are counted
@@ -94,10 +97,11 @@ struct ClientCounters {
   int64_t sessions_started = 0;
   int64_t server_restarts = 0;  // sessions given up: the server stopped answering
   int64_t sessions_ended_by_server = 0;
-  int64_t rejected = 0;                 // REJECTED by the server (e.g. full)
-  int64_t acks = 0;                     // HELLO_ACKs received for our sessions
-  int64_t hellos_sent = 0;              // first HELLOs and repeats
-  int64_t servers_seen = 0;             // distinct server instances that acknowledged a HELLO
+  int64_t rejected = 0;      // REJECTED by the server (e.g. full)
+  int64_t acks = 0;          // HELLO_ACKs received for our sessions
+  int64_t hellos_sent = 0;   // first HELLOs and repeats
+  int64_t servers_seen = 0;  // distinct server instances that acknowledged a HELLO
+  int64_t frames_held = 0;   // with a map group, not sent: the HELLO was not acknowledged yet
   int64_t foreign_server_messages = 0;  // for our session, from another server instance
   int64_t poses_received = 0;
   int64_t deltas_applied = 0;
