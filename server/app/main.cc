@@ -122,7 +122,8 @@ int main(int argc, char** argv) {
   app.add_option("--session-timeout", options.server.session_timeout_s,
                  "End a session after this many seconds without messages");
   app.add_option("--save-maps", options.server.save_maps_dir,
-                 "Save each session's map into this folder when it ends");
+                 "Save each session's map into this folder when it ends, and each map group's "
+                 "(group-NAME.m2smap) when the server stops");
   app.add_option("--max-features", options.server.max_features, "Largest frame accepted");
   app.add_option("--budget", options.server.slam.feature_budget,
                  "SLAM uses at most N features a frame, chosen by id hash (0: all)");
