@@ -4,7 +4,8 @@
 //
 // Each session owns one slam::System (its own, or an agent of a map group: a HELLO naming a
 // group makes the session an agent of this server's slam::MapGroup of that name, created on the
-// group's first session and kept when its sessions end) and a worker thread fed by a bounded
+// group's first session and kept when its sessions end; a session whose camera is not the
+// group's is REJECTED and its id served no more) and a worker thread fed by a bounded
 // latest-wins queue: HandleMessage() only decodes, validates and queues, so the caller (the IO
 // thread) never waits for SLAM. With Options::synchronous the frame is tracked in the caller's
 // thread instead (replay: every frame, deterministic). Everything that cannot be used is counted
