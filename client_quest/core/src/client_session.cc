@@ -54,15 +54,15 @@ Status ClientSession::Start() {
   BeginSession();
   const auto deadline = Deadline(options_.hello_timeout_s);
   std::unique_lock<std::mutex> lock(mutex_);
-  while (!acked_ && std::chrono::steady_clock::now() < deadline) {
+  while (!acked_ && !rejected_ && std::chrono::steady_clock::now() < deadline) {
     cv_.wait_until(lock, std::min(deadline, Deadline(options_.hello_resend_s)),
-                   [this] { return acked_; });
-    if (acked_) break;
+                   [this] { return acked_ || rejected_; });
+    if (acked_ || rejected_) break;
     lock.unlock();
     ResendHelloIfDue();
     lock.lock();
   }
-  if (!acked_) {
+  if (!acked_ && !rejected_) {
     M2S_LOG(kWarning) << "no HELLO_ACK within " << options_.hello_timeout_s
                       << " s; the HELLO is repeated while frames are sent";
   }
@@ -365,6 +365,8 @@ void ClientSession::OnSession(const session_control_t& message) {
       if (message.session_id != session_id_ || acked_) return;
       ++counters_.rejected;
       rejected_ = true;  // no more HELLO repeats for this session
+      last_rejection_ = message.reason;
+      cv_.notify_all();
       M2S_LOG(kWarning) << "server rejected session " << session_id_ << ": " << message.reason;
       return;
     default:  // client -> server messages (ours or other clients') echo back on this channel
@@ -393,6 +395,11 @@ int64_t ClientSession::session_id() const {
 int64_t ClientSession::server_instance() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return server_instance_;
+}
+
+std::string ClientSession::LastRejection() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return last_rejection_;
 }
 
 std::optional<server_stats_t> ClientSession::LastStats() const {

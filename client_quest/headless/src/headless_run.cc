@@ -147,12 +147,14 @@ Expected<HeadlessResult> RunHeadless(const HeadlessOptions& options) {
   const std::vector<client::FrameRecord> records = session.Records();
   const client::MapSnapshot map = session.replica().Snapshot();
   result.counters = session.Counters();
+  const std::string rejection = session.LastRejection();
   session.End();
   if (result.counters.poses_received == 0 && !records.empty()) {
     const client::ClientCounters& c = result.counters;
     return Status::Error("no server answered: " + std::to_string(records.size()) +
                          " frames sent, " + std::to_string(c.acks) + " HELLO acknowledgements, " +
-                         std::to_string(c.rejected) + " refusals (server full), " +
+                         std::to_string(c.rejected) + " refusals" +
+                         (c.rejected > 0 ? " (last: " + rejection + ")" : "") + ", " +
                          std::to_string(c.refused_by_transport) +
                          " messages refused by the bus checks (wrong key?)");
   }

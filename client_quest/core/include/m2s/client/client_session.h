@@ -135,6 +135,8 @@ class ClientSession {
   int64_t session_id() const;
   int64_t server_instance() const;
   std::optional<server_stats_t> LastStats() const;
+  // The reason of the last REJECTED the session believed (empty: none).
+  std::string LastRejection() const;
   Transport* transport() { return transport_; }
 
  private:
@@ -168,6 +170,7 @@ class ClientSession {
   int64_t server_instance_ = 0;
   bool acked_ = false;
   bool rejected_ = false;  // REJECTED before an acknowledgement
+  std::string last_rejection_;
   bool new_session_pending_ = false;
   int64_t next_seq_ = 1;
   int64_t session_first_seq_ = 1;  // client-wide seq of the session's first frame
