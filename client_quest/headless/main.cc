@@ -3,7 +3,10 @@
 //   m2s_client [--mesh FILE --trajectory GT.tum] [--camera CAMERA.json | --width W --height H
 //              --fov-deg F] [--fps F] [--fast] [--on-device | --lcm-url URL]
 //              [--projector gpu|cpu] [--no-occlusion] [--noise-px S --outlier-ids P --dropout P
-//              --seed N] [--key-file FILE [--encrypt]] [--out DIR]
+//              --seed N] [--key-file FILE [--encrypt]] [--map-group NAME] [--out DIR]
+//
+// --map-group NAME: the session joins the server's map group NAME (collaborative SLAM: every
+// client of a group shares one map); metrics.json then reports merged_at_s.
 //
 // Without --mesh / --trajectory it uses the embedded default scene and its trajectory.
 // Prints one summary line (and a progress line while running on a terminal).
@@ -69,12 +72,18 @@ int main(int argc, char** argv) {
                  "--fast: seconds to wait for each pose (a run nobody answers ends after one)")
       ->capture_default_str();
   app.add_option("--record", options.record_log, "Also write the sent messages to this LCM log");
+  app.add_option("--map-group", options.map_group,
+                 "Join this map group (at most 64 characters of A-Z a-z 0-9 _ . -)");
   app.add_option("--out", options.out_dir, "Output folder")->capture_default_str();
   app.add_flag(
       "--no-map-png", [&options](int64_t) { options.render_map = false; }, "Do not render map.png");
   CLI11_PARSE(app, argc, argv);
   options.send_budget = options.server.slam.feature_budget = budget;
 
+  if (m2s::Status name = m2s::wire::CheckMapGroupName(options.map_group); !name) {
+    std::cerr << "m2s_client: --map-group: " << name.message() << "\n";
+    return 2;
+  }
   if (!camera_json.empty()) {
     auto camera = m2s::ReadCameraJson(camera_json);
     if (!camera) {

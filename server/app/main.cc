@@ -3,25 +3,36 @@
 //   m2s_server [--lcm-url URL] [--config FILE] [--max-sessions N] [--session-timeout S]
 //              [--save-maps DIR] [--max-features N] [--budget N] [--stats-period S]
 //              [--key-file FILE [--encrypt] [--max-message-age S]] [--stats-out FILE.json]
+//              [--shard K/N] [--max-groups N] [--load-map GROUP=FILE]... [--camera CAMERA.json]
+//
+// --shard K/N: this server is K of N on one bus (common/shard.h): it answers only the HELLOs
+// whose map group (or, without a group, session id) hashes to K, creates sessions only from
+// HELLOs when N > 1, and ignores (and counts) what belongs to the others.
+// --load-map GROUP=FILE (repeatable): map group GROUP starts localisation-only in the map FILE
+// (saved by --save-maps as DIR/group-GROUP.m2smap); its camera is --camera's (the default
+// camera otherwise). A file that cannot be loaded ends the server with exit code 1.
 //
 // --key-file: the bus's shared secret (head -c 32 /dev/urandom > key); every message in and
 // out is authenticated and replay-checked (common/bus_auth.h). Without it the bus is open.
 //
 // --config reads a JSON object whose keys are the flag names with underscores (max_sessions,
 // session_timeout, max_features, budget, stats_period, lcm_url, save_maps,
-// deterministic) plus map_rate_hz, queue_capacity, num_ba_threads, max_keyframes,
-// drift_correction and mapping_nice; flags given on the command line win; an unknown key or a
-// value of the wrong type is an error. SIGINT / SIGTERM stop the server cleanly.
+// deterministic, max_groups, shard) plus map_rate_hz, queue_capacity, num_ba_threads,
+// max_keyframes, drift_correction and mapping_nice; flags given on the command line win; an unknown
+// key or a value of the wrong type is an error. SIGINT / SIGTERM stop the server cleanly.
 #include <csignal>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <map>
 #include <set>
 #include <string>
+#include <vector>
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include "m2s/common/camera_io.h"
 #include "m2s/server_app/lcm_server.h"
 
 namespace {
@@ -48,6 +59,12 @@ m2s::Status ReadConfig(const std::string& path, const CLI::App& app,
     if (!given("--lcm-url")) read("lcm_url", &o->lcm_url);
     if (!given("--save-maps")) read("save_maps", &s.save_maps_dir);
     if (!given("--deterministic")) read("deterministic", &s.slam.deterministic);
+    if (!given("--max-groups")) read("max_groups", &s.max_groups);
+    if (!given("--shard") && j.contains("shard")) {
+      auto shard = m2s::ShardSpec::Parse(j.at("shard").get<std::string>());
+      if (!shard) return m2s::Status::Error("config file " + path + ": " + shard.error());
+      s.shard = *shard;
+    }
     read("map_rate_hz", &s.map_rate_hz);
     read("queue_capacity", &s.queue_capacity);
     read("num_ba_threads", &s.slam.mapper.num_ba_threads);
@@ -55,9 +72,10 @@ m2s::Status ReadConfig(const std::string& path, const CLI::App& app,
     read("drift_correction", &s.slam.drift.enabled);
     read("mapping_nice", &s.slam.mapping_nice);
     static const std::set<std::string> kKeys = {
-        "max_sessions",   "session_timeout", "max_features",     "budget",      "stats_period",
-        "lcm_url",        "save_maps",       "deterministic",    "map_rate_hz", "queue_capacity",
-        "num_ba_threads", "max_keyframes",   "drift_correction", "mapping_nice"};
+        "max_sessions",     "session_timeout", "max_features",   "budget",
+        "stats_period",     "lcm_url",         "save_maps",      "deterministic",
+        "map_rate_hz",      "queue_capacity",  "num_ba_threads", "max_keyframes",
+        "drift_correction", "mapping_nice",    "max_groups",     "shard"};
     for (const auto& [key, value] : j.items()) {
       if (!kKeys.contains(key)) {
         return m2s::Status::Error("config file " + path + ": unknown key \"" + key + "\"");
@@ -65,6 +83,28 @@ m2s::Status ReadConfig(const std::string& path, const CLI::App& app,
     }
   } catch (const nlohmann::json::exception& e) {
     return m2s::Status::Error("config file " + path + ": " + e.what());
+  }
+  return m2s::Status::Ok();
+}
+
+// Parses the --load-map values GROUP=FILE; the file must be readable (its content is checked
+// when the group loads it).
+m2s::Status ParseGroupMaps(const std::vector<std::string>& values,
+                           std::map<std::string, std::string>* group_maps) {
+  for (const std::string& value : values) {
+    const size_t eq = value.find('=');
+    if (eq == std::string::npos || eq == 0 || eq + 1 == value.size()) {
+      return m2s::Status::Error("--load-map " + value + ": expected GROUP=FILE");
+    }
+    const std::string group = value.substr(0, eq), file = value.substr(eq + 1);
+    if (m2s::Status name = m2s::wire::CheckMapGroupName(group); !name) {
+      return name.Prefixed("--load-map " + value + ": ");
+    }
+    if (!std::ifstream(file))
+      return m2s::Status::Error("--load-map " + value + ": cannot open " + file);
+    if (!group_maps->emplace(group, file).second) {
+      return m2s::Status::Error("--load-map: map group " + group + " given twice");
+    }
   }
   return m2s::Status::Ok();
 }
@@ -82,13 +122,23 @@ int main(int argc, char** argv) {
   app.add_option("--session-timeout", options.server.session_timeout_s,
                  "End a session after this many seconds without messages");
   app.add_option("--save-maps", options.server.save_maps_dir,
-                 "Save each session's map into this folder when it ends");
+                 "Save each session's map into this folder when it ends, and each map group's "
+                 "(group-NAME.m2smap) when the server stops");
   app.add_option("--max-features", options.server.max_features, "Largest frame accepted");
   app.add_option("--budget", options.server.slam.feature_budget,
                  "SLAM uses at most N features a frame, chosen by id hash (0: all)");
   app.add_option("--stats-period", options.stats_period_s, "Seconds between stats (0: never)");
   app.add_flag("--deterministic", options.server.slam.deterministic,
                "Run every session's SLAM deterministically");
+  std::string shard = "0/1", camera_json;
+  app.add_option("--shard", shard, "Serve share K of N servers on this bus (K/N)")
+      ->capture_default_str();
+  app.add_option("--max-groups", options.server.max_groups, "Map groups held at most")
+      ->capture_default_str();
+  std::vector<std::string> load_maps;
+  app.add_option("--load-map", load_maps,
+                 "GROUP=FILE: start map group GROUP localisation-only in a saved map (repeatable)");
+  app.add_option("--camera", camera_json, "CAMERA.json: the camera of the --load-map groups");
   std::string key_file, stats_out;
   bool encrypt = false;
   app.add_option("--stats-out", stats_out, "Write the server's counters (JSON) here at exit");
@@ -105,6 +155,26 @@ int main(int argc, char** argv) {
     return 2;
   }
   options.bus = *security;
+  if (app.count("--shard")) {
+    auto parsed = m2s::ShardSpec::Parse(shard);
+    if (!parsed) {
+      std::cerr << "m2s_server: --shard: " << parsed.error() << "\n";
+      return 2;
+    }
+    options.server.shard = *parsed;
+  }
+  if (!camera_json.empty()) {
+    auto camera = m2s::ReadCameraJson(camera_json);
+    if (!camera) {
+      std::cerr << "m2s_server: " << camera.error() << "\n";
+      return 2;
+    }
+    options.server.slam.camera = *camera;
+  }
+  if (m2s::Status parsed = ParseGroupMaps(load_maps, &options.group_maps); !parsed) {
+    std::cerr << "m2s_server: " << parsed.message() << "\n";
+    return 1;
+  }
 
   if (!config.empty()) {
     if (m2s::Status read = ReadConfig(config, app, &options); !read) {

@@ -50,7 +50,8 @@ wire::FeatureFrame Frame(int width, int height, int n, bool ground_truth) {
   return frame;
 }
 
-session_control_t Session(int8_t type, const std::string& name, const std::string& reason) {
+session_control_t Session(int8_t type, const std::string& name, const std::string& reason,
+                          const std::string& map_group = "") {
   session_control_t m{};
   m.version = session_control_t::VERSION;
   m.type = type;
@@ -59,6 +60,7 @@ session_control_t Session(int8_t type, const std::string& name, const std::strin
   m.client_name = name;
   m.reason = reason;
   m.camera = wire::ToMessage(Camera());
+  m.map_group = map_group;
   return m;
 }
 
@@ -88,6 +90,7 @@ map_delta_t MapDelta(bool empty) {
   for (int i = 0; i < 2; ++i) {
     m.keyframes[i].id = i;
     m.keyframes[i].world_from_camera = wire::ToMessage(Pose3());
+    m.keyframes[i].own = i == 0;
   }
   m.num_removed_keyframes = 1;
   m.removed_keyframes = {5};
@@ -204,6 +207,8 @@ int Main(int argc, char** argv) {
   Write(corpus / "feature_frame" / "empty.bin", wire::EncodeFeatureFrame(Frame(64, 48, 0, false)));
   Write(corpus / "session_control" / "hello.bin",
         wire::Encode(Session(session_control_t::HELLO, "quest", "")));
+  Write(corpus / "session_control" / "hello_map_group.bin",
+        wire::Encode(Session(session_control_t::HELLO, "quest", "", "room-a_2.b")));
   Write(corpus / "session_control" / "bye.bin",
         wire::Encode(Session(session_control_t::BYE, "", "")));
   Write(corpus / "session_control" / "rejected.bin",

@@ -9,9 +9,11 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <random>
 #include <sstream>
 #include <thread>
+#include <vector>
 
 #include <gtest/gtest.h>
 #include <lcm/lcm-cpp.hpp>
@@ -165,6 +167,64 @@ TEST(LcmNetworkTest, ServerRestartMidSessionStartsANewSession) {
   EXPECT_EQ(session.server_instance(), server->server_instance());
   session.End();
   server->Stop();
+}
+
+// Two servers on one bus, shards 0/2 and 1/2, and six clients, three of them in map groups
+// (two share one): every client is acknowledged and answered by exactly one server, a group's
+// clients by the same one, and nothing is dropped.
+TEST(LcmNetworkTest, ShardedServersAnswerEveryClientExactlyOnce) {
+  M2S_REQUIRE_NETWORK();
+  const server_app::MapGroupFactory group_factory =
+      [](const slam::Options& o) -> Expected<std::shared_ptr<slam::MapGroup>> {
+    return std::shared_ptr<slam::MapGroup>(std::make_shared<testing::FakeMapGroup>(o));
+  };
+  std::vector<std::unique_ptr<server_app::LcmServer>> servers;
+  for (int k = 0; k < 2; ++k) {
+    server_app::LcmServerOptions options = ServerOptions();
+    options.server.shard = {k, 2};
+    servers.push_back(std::make_unique<server_app::LcmServer>(options, &testing::FakeSystem::Create,
+                                                              group_factory));
+    ASSERT_TRUE(servers.back()->Start().ok());
+  }
+  constexpr int kClients = 6, kFrames = 5;
+  std::vector<std::unique_ptr<client::LcmTransport>> transports;
+  std::vector<std::unique_ptr<client::ClientSession>> sessions;
+  for (int i = 0; i < kClients; ++i) {
+    transports.push_back(std::make_unique<client::LcmTransport>(kUrl));
+    client::ClientSessionOptions options;
+    options.session_seed = 1000 + i;
+    options.map_group = i % 2 == 0 ? "" : (i < 5 ? "room-a" : "room-b");
+    sessions.push_back(std::make_unique<client::ClientSession>(transports.back().get(), options));
+    ASSERT_TRUE(sessions.back()->Start().ok());
+  }
+  for (int k = 0; k < kFrames; ++k) {
+    for (auto& session : sessions) {
+      wire::FeatureFrame frame;
+      frame.capture_time_us = k * 10000;
+      frame.features = {{static_cast<VertexId>(k), {5.f, 5.f}}};
+      auto seq = session->Send(frame);
+      ASSERT_TRUE(seq.ok());
+      EXPECT_TRUE(session->WaitForPose(*seq, 10.0)) << k;
+    }
+  }
+  for (auto& session : sessions) {
+    const client::ClientCounters c = session->Counters();
+    EXPECT_EQ(c.servers_seen, 1);
+    EXPECT_EQ(c.sessions_started, 1);
+    EXPECT_EQ(c.poses_received, kFrames);
+    EXPECT_EQ(c.foreign_server_messages, 0);
+  }
+  EXPECT_EQ(sessions[1]->server_instance(), sessions[3]->server_instance());  // room-a
+  for (auto& session : sessions) session->End();
+  int64_t started = 0;
+  for (auto& server : servers) {
+    server->Stop();
+    const server_app::ServerCounters c = server->Counters();
+    started += c.sessions_started;
+    EXPECT_EQ(c.total_drops(), 0);
+    EXPECT_GE(c.other_shard_hellos, 1);  // each server saw the other's HELLOs
+  }
+  EXPECT_EQ(started, kClients);
 }
 
 // Sends junk on every channel: random bytes, other types' fingerprints, and well-formed

@@ -1,5 +1,6 @@
 // Runs m2s_features, m2s_eval and m2s_server (its config handling) as processes and checks what
 // they write.
+#include <signal.h>
 #include <sys/wait.h>
 
 #include <unistd.h>
@@ -220,6 +221,148 @@ TEST_F(CliToolsTest, EvalSavesThePerPoseErrors) {
     ++n;
   }
   EXPECT_EQ(n, gt.size());
+}
+
+// Group mode: two agents, each a part of the default trajectory with its own ground truth.
+// Estimates made by one known Sim3 from the ground truth share one world: joint ATE ~0. With a
+// different Sim3 per agent, each agent alone still aligns exactly (per-agent ATE ~0) but no
+// single transform fits both (joint ATE large).
+TEST_F(CliToolsTest, EvalJointAteOfAGroupRecoversAKnownSimilarity) {
+  const Trajectory gt = DefaultTrajectory();
+  const size_t half = gt.size() / 2;
+  const Sim3 shared(
+      0.4, Eigen::Quaterniond(Eigen::AngleAxisd(0.8, Eigen::Vector3d(1, -2, 0.5).normalized())),
+      Eigen::Vector3d(2, -1, 0.3));
+  const Sim3 other(
+      1.7, Eigen::Quaterniond(Eigen::AngleAxisd(-1.1, Eigen::Vector3d(0, 1, 1).normalized())),
+      Eigen::Vector3d(-0.5, 3, 1));
+  auto write = [&](const std::string& name, size_t begin, size_t end, const Sim3* est_from_gt) {
+    std::vector<TimedPose> poses;
+    for (size_t i = begin; i < end; ++i) {
+      poses.push_back({gt[i].timestamp, est_from_gt
+                                            ? est_from_gt->TransformPose(gt[i].world_from_camera)
+                                            : gt[i].world_from_camera});
+    }
+    const Expected<Trajectory> t = Trajectory::FromPoses(poses);
+    ASSERT_TRUE(t.ok());
+    ASSERT_TRUE(WriteTum((dir_ / name).string(), *t).ok());
+  };
+  write("gt1.tum", 0, half, nullptr);
+  write("gt2.tum", half, gt.size(), nullptr);
+  write("est1.tum", 0, half, &shared);
+  write("est2_shared.tum", half, gt.size(), &shared);
+  write("est2_other.tum", half, gt.size(), &other);
+  auto run = [&](const std::string& est2) {
+    const RunResult r = RunTool(
+        dir_, "m2s_eval",
+        "--agent " + (dir_ / "gt1.tum").string() + " " + (dir_ / "est1.tum").string() +
+            " --agent " + (dir_ / "gt2.tum").string() + " " + (dir_ / est2).string() + " --json");
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    return nlohmann::json::parse(r.out);
+  };
+  const nlohmann::json one_world = run("est2_shared.tum");
+  // Measured: joint ATE 1.5e-14 m, scale off by 8.9e-16 (double rounding of the 17-digit TUM
+  // files, as in the one-agent test); the bounds allow about 10x.
+  EXPECT_LT(one_world.at("joint").at("ate_rmse").get<double>(), 1.5e-13);
+  EXPECT_NEAR(one_world.at("joint").at("scale").get<double>(), 1.0 / 0.4, 1e-14);
+  EXPECT_EQ(one_world.at("joint").at("n_matched").get<size_t>(), gt.size());
+  ASSERT_EQ(one_world.at("agents").size(), 2u);
+  EXPECT_EQ(one_world.at("agents")[0].at("n_matched").get<size_t>(), half);
+  EXPECT_EQ(one_world.at("agents")[1].at("n_matched").get<size_t>(), gt.size() - half);
+
+  // Measured: joint ATE 1.76 m; each agent alone 1.1e-14 and 5.0e-15 m, the second agent's
+  // scale off by 1.1e-15.
+  const nlohmann::json two_worlds = run("est2_other.tum");
+  EXPECT_GT(two_worlds.at("joint").at("ate_rmse").get<double>(), 0.5);
+  for (const nlohmann::json& agent : two_worlds.at("agents")) {
+    EXPECT_LT(agent.at("ate_rmse").get<double>(), 1.5e-13) << agent.dump();
+  }
+  EXPECT_NEAR(two_worlds.at("agents")[1].at("scale").get<double>(), 1.0 / 1.7, 1e-14);
+
+  // An odd number of files, or --agent with --save-errors: one line, non-zero exit.
+  const RunResult odd = RunTool(dir_, "m2s_eval", "--agent " + (dir_ / "gt1.tum").string());
+  EXPECT_NE(odd.exit_code, 0);
+  EXPECT_EQ(std::count(odd.err.begin(), odd.err.end(), '\n'), 1) << odd.err;
+}
+
+// --load-map GROUP=FILE: a file that does not exist or that the group cannot load ends the
+// server before it serves anything, with one line naming the file and a non-zero exit.
+TEST_F(CliToolsTest, ServerRefusesAMapGroupFileItCannotLoad) {
+  const fs::path missing = dir_ / "missing.m2smap";
+  const RunResult none =
+      RunTool(dir_, "m2s_server", "--lcm-url memq:// --load-map room-a=" + missing.string());
+  EXPECT_NE(none.exit_code, 0);
+  EXPECT_NE(none.err.find(missing.string()), std::string::npos) << none.err;
+  EXPECT_EQ(std::count(none.err.begin(), none.err.end(), '\n'), 1) << none.err;
+
+  const fs::path garbage = dir_ / "garbage.m2smap";
+  std::ofstream(garbage) << "not a map";
+  const RunResult bad =
+      RunTool(dir_, "m2s_server", "--lcm-url memq:// --load-map room-a=" + garbage.string());
+  EXPECT_NE(bad.exit_code, 0);
+  EXPECT_NE(bad.err.find("room-a"), std::string::npos) << bad.err;
+  EXPECT_NE(bad.err.rfind("m2s_server: "), std::string::npos) << bad.err;
+
+  const RunResult name = RunTool(dir_, "m2s_server", "--lcm-url memq:// --load-map 'a b=x'");
+  EXPECT_NE(name.exit_code, 0);
+  EXPECT_NE(name.err.find("map group name"), std::string::npos) << name.err;
+  const RunResult shard = RunTool(dir_, "m2s_server", "--lcm-url memq:// --shard 2/2");
+  EXPECT_EQ(shard.exit_code, 2);
+  EXPECT_NE(shard.err.find("--shard"), std::string::npos) << shard.err;
+}
+
+// --stats-out: the server writes its counters as JSON when it stops. The test reads the
+// server's log through a pipe until it listens (no sleep), stops it with SIGTERM and reads the
+// file.
+TEST_F(CliToolsTest, ServerWritesItsStatsAtExit) {
+  const fs::path stats = dir_ / "stats.json";
+  int pipe_fds[2];
+  ASSERT_EQ(::pipe(pipe_fds), 0);
+  const std::string bin = std::string(M2S_BINARY_DIR) + "/bin/m2s_server";
+  const std::string out_arg = stats.string();
+  const pid_t pid = ::fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    ::dup2(pipe_fds[1], STDERR_FILENO);
+    ::close(pipe_fds[0]);
+    ::execl(bin.c_str(), bin.c_str(), "--lcm-url", "memq://", "--shard", "1/3", "--stats-out",
+            out_arg.c_str(), "--stats-period", "0", static_cast<char*>(nullptr));
+    ::_exit(127);
+  }
+  ::close(pipe_fds[1]);
+  FILE* log = ::fdopen(pipe_fds[0], "r");
+  ASSERT_NE(log, nullptr);
+  char line[4096];
+  bool listening = false;
+  while (!listening && std::fgets(line, sizeof(line), log)) {
+    listening = std::string(line).find("listening on") != std::string::npos;
+  }
+  ASSERT_TRUE(listening) << "the server ended before listening";
+  ::kill(pid, SIGTERM);
+  while (std::fgets(line, sizeof(line), log)) {
+  }
+  std::fclose(log);
+  int status = 0;
+  ASSERT_EQ(::waitpid(pid, &status, 0), pid);
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 0);
+  std::ifstream in(stats);
+  ASSERT_TRUE(in) << stats;
+  const nlohmann::json j = nlohmann::json::parse(in);
+  EXPECT_EQ(j.at("shard"), "1/3");
+  EXPECT_EQ(j.at("shard_index"), 1);
+  EXPECT_EQ(j.at("shard_count"), 3);
+  EXPECT_NE(j.at("server_instance").get<int64_t>(), 0);
+  EXPECT_EQ(j.at("messages_in"), 0);
+  EXPECT_EQ(j.at("sessions_started"), 0);
+  EXPECT_TRUE(j.at("groups").is_array());
+  EXPECT_EQ(j.at("authenticated"), false);
+  for (const char* key : {"frames_in", "frames_processed", "sessions_ended", "other_shard_hellos",
+                          "other_shard_messages", "groups_created", "groups_refused"}) {
+    EXPECT_EQ(j.at(key), 0) << key;
+  }
+  EXPECT_EQ(j.at("drops").at("bad_group_name"), 0);
+  EXPECT_EQ(j.at("drops").at("max_groups"), 0);
 }
 
 TEST_F(CliToolsTest, EvalRejectsBadInputWithOneLine) {

@@ -1,5 +1,6 @@
 #include "m2s/client/client_session.h"
 
+#include <algorithm>
 #include <chrono>
 
 #include "m2s/common/logging.h"
@@ -41,6 +42,7 @@ ClientSession::ClientSession(Transport* transport, ClientSessionOptions options)
 ClientSession::~ClientSession() { End(); }
 
 Status ClientSession::Start() {
+  if (Status name = wire::CheckMapGroupName(options_.map_group); !name) return name;
   {
     std::lock_guard<std::mutex> lock(mutex_);
     if (started_) return Status::Error("session already started");
@@ -50,10 +52,19 @@ Status ClientSession::Start() {
                                             size_t size) { OnMessage(channel, data, size); });
   if (!started) return started;
   BeginSession();
+  const auto deadline = Deadline(options_.hello_timeout_s);
   std::unique_lock<std::mutex> lock(mutex_);
-  if (!cv_.wait_until(lock, Deadline(options_.hello_timeout_s), [this] { return acked_; })) {
+  while (!acked_ && !rejected_ && std::chrono::steady_clock::now() < deadline) {
+    cv_.wait_until(lock, std::min(deadline, Deadline(options_.hello_resend_s)),
+                   [this] { return acked_ || rejected_; });
+    if (acked_ || rejected_) break;
+    lock.unlock();
+    ResendHelloIfDue();
+    lock.lock();
+  }
+  if (!acked_ && !rejected_) {
     M2S_LOG(kWarning) << "no HELLO_ACK within " << options_.hello_timeout_s
-                      << " s; frames will open the session";
+                      << " s; the HELLO is repeated while frames are sent";
   }
   return Status::Ok();
 }
@@ -66,6 +77,7 @@ void ClientSession::BeginSession() {
     session_id_ = id;
     server_instance_ = 0;
     acked_ = false;
+    rejected_ = false;
     new_session_pending_ = false;
     session_first_seq_ = next_seq_;
     last_answer_s_ = Now();
@@ -73,20 +85,32 @@ void ClientSession::BeginSession() {
     ++counters_.sessions_started;
   }
   replica_.Reset(id);
-  session_control_t hello = {};
-  hello.version = session_control_t::VERSION;
-  hello.type = session_control_t::HELLO;
-  hello.session_id = id;
-  hello.server_instance = 0;
-  hello.wall_us = wire::WallClockMicros();
-  hello.last_revision = 0;
-  hello.client_name = options_.client_name;
-  hello.camera = wire::ToMessage(options_.camera);
-  hello.flags = options_.deterministic ? session_control_t::FLAG_DETERMINISTIC : 0;
-  // Best effort: HELLO is repeated until answered and frames open the session too.
-  if (Status sent = transport_->Publish(wire::kSessionChannel, wire::Encode(hello)); !sent) {
-    M2S_LOG(kWarning) << "HELLO not sent: " << sent.message();
+  SendHello();
+}
+
+void ClientSession::SendHello() {
+  int64_t id = 0;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    id = session_id_;
+    last_hello_s_ = Now();
+    ++counters_.hellos_sent;
   }
+  // Best effort: HELLO is repeated until answered (and unsharded servers open the session from
+  // frames too).
+  PublishControl(session_control_t::HELLO, id, 0);
+}
+
+bool ClientSession::ResendHelloIfDue() {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (acked_ || rejected_ || ended_ || new_session_pending_ ||
+        Now() - last_hello_s_ < options_.hello_resend_s) {
+      return false;
+    }
+  }
+  SendHello();
+  return true;
 }
 
 void ClientSession::PublishControl(int8_t type, int64_t session_id, int64_t last_revision) {
@@ -100,6 +124,10 @@ void ClientSession::PublishControl(int8_t type, int64_t session_id, int64_t last
   m.client_name = options_.client_name;
   m.camera = wire::ToMessage(options_.camera);
   m.flags = 0;
+  if (type == session_control_t::HELLO) {
+    m.flags = options_.deterministic ? session_control_t::FLAG_DETERMINISTIC : 0;
+    m.map_group = options_.map_group;
+  }
   if (Status sent = transport_->Publish(wire::kSessionChannel, wire::Encode(m)); !sent) {
     M2S_LOG(kWarning) << "session message " << static_cast<int>(type)
                       << " not sent: " << sent.message();
@@ -117,11 +145,18 @@ Expected<int64_t> ClientSession::Send(wire::FeatureFrame frame) {
   if (old_session != 0) {
     PublishControl(session_control_t::BYE, old_session, 0);
     BeginSession();
+  } else {
+    ResendHelloIfDue();
   }
   std::vector<uint8_t> bytes;
   int64_t seq = 0;
+  bool hold = false;
   {
     std::lock_guard<std::mutex> lock(mutex_);
+    // A group session's frames wait for the acknowledgement: an unsharded server would open a
+    // session without the group from a frame that overtook the HELLO.
+    hold = !acked_ && !options_.map_group.empty();
+    if (hold) ++counters_.frames_held;
     seq = next_seq_++;
     frame.session_id = session_id_;
     frame.seq = seq - session_first_seq_ + 1;
@@ -144,6 +179,7 @@ Expected<int64_t> ClientSession::Send(wire::FeatureFrame frame) {
     record.encoded_bytes = bytes.size();
     records_.push_back(record);
   }
+  if (hold) return seq;  // recorded, never answered
   Status published = transport_->Publish(wire::kFrameChannel, bytes);
   if (!published) return published;
   return seq;
@@ -310,6 +346,7 @@ void ClientSession::OnSession(const session_control_t& message) {
       }
       server_instance_ = message.server_instance;
       acked_ = true;
+      servers_seen_.insert(message.server_instance);
       last_answer_s_ = Now();
       cv_.notify_all();
       return;
@@ -327,6 +364,9 @@ void ClientSession::OnSession(const session_control_t& message) {
       // session is renewed after unanswered_timeout_s).
       if (message.session_id != session_id_ || acked_) return;
       ++counters_.rejected;
+      rejected_ = true;  // no more HELLO repeats for this session
+      last_rejection_ = message.reason;
+      cv_.notify_all();
       M2S_LOG(kWarning) << "server rejected session " << session_id_ << ": " << message.reason;
       return;
     default:  // client -> server messages (ours or other clients') echo back on this channel
@@ -342,6 +382,7 @@ std::vector<FrameRecord> ClientSession::Records() const {
 ClientCounters ClientSession::Counters() const {
   std::lock_guard<std::mutex> lock(mutex_);
   ClientCounters counters = counters_;
+  counters.servers_seen = static_cast<int64_t>(servers_seen_.size());
   counters.refused_by_transport = transport_->refused_messages();
   return counters;
 }
@@ -354,6 +395,11 @@ int64_t ClientSession::session_id() const {
 int64_t ClientSession::server_instance() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return server_instance_;
+}
+
+std::string ClientSession::LastRejection() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return last_rejection_;
 }
 
 std::optional<server_stats_t> ClientSession::LastStats() const {

@@ -28,7 +28,7 @@ MapReplica::ApplyResult MapReplica::Apply(const map_delta_t& delta) {
   for (const keyframe_t& k : delta.keyframes) {
     auto pose = wire::FromMessage(k.world_from_camera);
     if (!pose) continue;
-    keyframes_[k.id] = {k.id, static_cast<double>(k.capture_time_us) * 1e-6, *pose};
+    keyframes_[k.id] = {k.id, static_cast<double>(k.capture_time_us) * 1e-6, *pose, k.own != 0};
   }
   const size_t n = std::min(delta.point_ids.size(), delta.point_xyz.size());
   for (size_t i = 0; i < n; ++i) {

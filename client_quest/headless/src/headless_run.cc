@@ -90,6 +90,7 @@ Expected<HeadlessResult> RunHeadless(const HeadlessOptions& options) {
   session_options.camera = options.camera;
   session_options.deterministic = options.fast;
   session_options.session_seed = options.session_seed;
+  session_options.map_group = options.map_group;
   client::ClientSession session(transport.get(), session_options);
   if (Status s = session.Start(); !s) return s;
 
@@ -146,12 +147,14 @@ Expected<HeadlessResult> RunHeadless(const HeadlessOptions& options) {
   const std::vector<client::FrameRecord> records = session.Records();
   const client::MapSnapshot map = session.replica().Snapshot();
   result.counters = session.Counters();
+  const std::string rejection = session.LastRejection();
   session.End();
   if (result.counters.poses_received == 0 && !records.empty()) {
     const client::ClientCounters& c = result.counters;
     return Status::Error("no server answered: " + std::to_string(records.size()) +
                          " frames sent, " + std::to_string(c.acks) + " HELLO acknowledgements, " +
-                         std::to_string(c.rejected) + " refusals (server full), " +
+                         std::to_string(c.rejected) + " refusals" +
+                         (c.rejected > 0 ? " (last: " + rejection + ")" : "") + ", " +
                          std::to_string(c.refused_by_transport) +
                          " messages refused by the bus checks (wrong key?)");
   }
@@ -160,6 +163,8 @@ Expected<HeadlessResult> RunHeadless(const HeadlessOptions& options) {
   info.resync_requests = result.counters.resync_requests;
   info.bus_refused = result.counters.refused_by_transport;
   info.foreign_server_messages = result.counters.foreign_server_messages;
+  info.map_group = options.map_group;
+  info.servers_seen = result.counters.servers_seen;
   auto metrics =
       reporting::WriteRunOutputs(options.out_dir, records, map, &scene, options.camera, info);
   if (!metrics) return metrics.status();

@@ -156,6 +156,20 @@ std::vector<client::FrameRecord> TrackedFrames(const std::vector<client::FrameRe
   return out;
 }
 
+std::optional<double> FirstPoseInGroupMapSeconds(const std::vector<client::FrameRecord>& records) {
+  if (records.empty()) return std::nullopt;
+  int64_t first_sent_us = records.front().send_steady_us;
+  std::optional<double> first_in_group_us;
+  for (const auto& r : records) {
+    first_sent_us = std::min(first_sent_us, r.send_steady_us);
+    if (!r.answered || !Tracked(r.state) || r.map_id != 0) continue;
+    const double received_us = static_cast<double>(r.send_steady_us) + r.latency_ms * 1e3;
+    if (!first_in_group_us || received_us < *first_in_group_us) first_in_group_us = received_us;
+  }
+  if (!first_in_group_us) return std::nullopt;
+  return (*first_in_group_us - static_cast<double>(first_sent_us)) * 1e-6;
+}
+
 Expected<RunMetrics> WriteRunOutputs(const std::string& out_dir,
                                      const std::vector<client::FrameRecord>& records,
                                      const client::MapSnapshot& map, const Scene* scene,
@@ -196,6 +210,11 @@ Expected<RunMetrics> WriteRunOutputs(const std::string& out_dir,
   m.features_per_frame = records.empty() ? 0.0 : static_cast<double>(features) / records.size();
   m.keyframes = static_cast<int64_t>(map.keyframes.size());
   m.map_points = static_cast<int64_t>(map.points.size());
+  m.servers_seen = info.servers_seen;
+  if (!info.map_group.empty()) {
+    m.map_group = info.map_group;
+    m.merged_at_s = FirstPoseInGroupMapSeconds(records);
+  }
 
   // Ground truth at every frame time. The run's trajectory is every tracked frame of every
   // session, evaluated as one (a run split over sessions shows as such); each session is also
@@ -310,6 +329,9 @@ Expected<RunMetrics> WriteRunOutputs(const std::string& out_dir,
   j["bus_refused"] = info.bus_refused;
   j["foreign_server_messages"] = info.foreign_server_messages;
   j["wall_s"] = info.wall_s;
+  j["map_group"] = m.map_group ? nlohmann::json(*m.map_group) : nlohmann::json(nullptr);
+  j["servers_seen"] = m.servers_seen;
+  j["merged_at_s"] = m.merged_at_s ? nlohmann::json(*m.merged_at_s) : nlohmann::json(nullptr);
   nlohmann::json sessions = nlohmann::json::array();
   for (const SessionMetrics& session : m.sessions) {
     sessions.push_back({{"session_id", session.id},

@@ -71,6 +71,19 @@ std::vector<double> Stamps(const Trajectory& trajectory, double offset) {
   return stamps;
 }
 
+// The alignment of matched positions (identity for kNone).
+Expected<Sim3> AlignMatched(const std::vector<Eigen::Vector3d>& reference,
+                            const std::vector<Eigen::Vector3d>& estimate, Alignment kind) {
+  if (kind == Alignment::kNone) return Sim3::Identity();
+  const std::optional<Sim3> alignment = AlignPoints(estimate, reference, kind == Alignment::kSim3);
+  if (!alignment) {
+    return Expected<Sim3>::Error(std::string(AlignmentName(kind)) +
+                                 " alignment failed: " + std::to_string(reference.size()) +
+                                 " matched poses (need at least 3, not all on one line)");
+  }
+  return *alignment;
+}
+
 }  // namespace
 
 Expected<Alignment> ParseAlignment(const std::string& name) {
@@ -166,17 +179,9 @@ Expected<TrajectoryEvaluation> EvaluateTrajectory(const Trajectory& reference,
     ref_positions.push_back(reference[m.reference].world_from_camera.translation());
     est_positions.push_back(estimate[m.estimate].world_from_camera.translation());
   }
-  if (options.alignment != Alignment::kNone) {
-    const std::optional<Sim3> alignment =
-        AlignPoints(est_positions, ref_positions, options.alignment == Alignment::kSim3);
-    if (!alignment) {
-      return Expected<TrajectoryEvaluation>::Error(
-          std::string(AlignmentName(options.alignment)) +
-          " alignment failed: " + std::to_string(result.matches.size()) +
-          " matched poses (need at least 3, not all on one line)");
-    }
-    result.reference_from_estimate = *alignment;
-  }
+  auto alignment = AlignMatched(ref_positions, est_positions, options.alignment);
+  if (!alignment) return alignment.status();
+  result.reference_from_estimate = *alignment;
   result.scale = result.reference_from_estimate.scale();
 
   std::vector<Pose3> ref_poses, aligned;
@@ -195,6 +200,31 @@ Expected<TrajectoryEvaluation> EvaluateTrajectory(const Trajectory& reference,
   }
   result.ate = ComputeStats(result.ate_errors);
   result.rpe = ComputeStats(result.rpe_errors);
+  return result;
+}
+
+Expected<GroupEvaluation> EvaluateGroup(const std::vector<AgentTrajectories>& agents,
+                                        const EvaluationOptions& options) {
+  if (agents.empty()) return Expected<GroupEvaluation>::Error("no agent trajectories");
+  GroupEvaluation result;
+  std::vector<Eigen::Vector3d> ref_positions, est_positions;
+  for (size_t a = 0; a < agents.size(); ++a) {
+    auto own = EvaluateTrajectory(agents[a].reference, agents[a].estimate, options);
+    if (!own) return own.status().Prefixed("agent " + std::to_string(a + 1) + ": ");
+    for (const MatchedPair& m : own->matches) {
+      ref_positions.push_back(agents[a].reference[m.reference].world_from_camera.translation());
+      est_positions.push_back(agents[a].estimate[m.estimate].world_from_camera.translation());
+    }
+    result.agents.push_back(std::move(*own));
+  }
+  auto alignment = AlignMatched(ref_positions, est_positions, options.alignment);
+  if (!alignment) return alignment.status().Prefixed("joint: ");
+  result.reference_from_estimate = *alignment;
+  result.scale = alignment->scale();
+  for (size_t i = 0; i < ref_positions.size(); ++i) {
+    result.ate_errors.push_back((*alignment * est_positions[i] - ref_positions[i]).norm());
+  }
+  result.ate = ComputeStats(result.ate_errors);
   return result;
 }
 

@@ -56,6 +56,12 @@ const char* ToString(DropReason reason) {
       return "timestamp_going_back";
     case DropReason::kNonFiniteUv:
       return "non_finite_uv";
+    case DropReason::kBadGroupName:
+      return "bad_group_name";
+    case DropReason::kGroupCamera:
+      return "group_camera_mismatch";
+    case DropReason::kMaxGroups:
+      return "max_groups";
     case DropReason::kCount:
       break;
   }

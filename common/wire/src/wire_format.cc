@@ -15,7 +15,7 @@ constexpr int kMaxUvShift = 8;
 constexpr int kHashBytes = 8;
 constexpr int kPoseBytes = 7 * 8;
 constexpr int kCameraBytes = 2 * 4 + 6 * 8;
-constexpr int kKeyframeBytes = 4 + 8 + kPoseBytes;
+constexpr int kKeyframeBytes = 4 + 8 + kPoseBytes + 1;
 // An encoded string: int32 length (counting the NUL), at least the NUL.
 constexpr int kMinStringBytes = 4 + 1;
 
@@ -353,11 +353,12 @@ Expected<FeatureFrame> DecodeFeatureFrame(const void* data, size_t size,
 
 Expected<session_control_t> DecodeSessionControl(const void* data, size_t size) {
   auto m = DecodeChecked<session_control_t>(data, size, [](Reader* r) {
-    // version, type, 4 int64, client_name, reason, camera, flags.
+    // version, type, 4 int64, client_name, reason, camera, flags, map_group.
     return r->Skip(2 + 1 + 4 * 8) && r->SkipString() && r->SkipString() &&
-           r->Skip(kCameraBytes + 4);
+           r->Skip(kCameraBytes + 4) && r->SkipString();
   });
   if (!m) return m;
+  if (Status name = CheckMapGroupName(m->map_group); !name) return name;
   if (m->type < session_control_t::HELLO || m->type > session_control_t::REJECTED) {
     return Expected<session_control_t>::Error(DropReason::kBadSessionMessage,
                                               "session message type " + std::to_string(m->type));
@@ -415,6 +416,25 @@ Expected<server_stats_t> DecodeServerStats(const void* data, size_t size) {
     }
     return r->Skip(static_cast<size_t>(n) * 8 + 2 * 4);
   });
+}
+
+Status CheckMapGroupName(std::string_view name) {
+  if (name.size() > kMaxMapGroupName) {
+    return Status::Error(DropReason::kBadGroupName,
+                         "map group name of " + std::to_string(name.size()) + " characters (max " +
+                             std::to_string(kMaxMapGroupName) + ")");
+  }
+  for (const char c : name) {
+    const bool allowed = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') ||
+                         (c >= '0' && c <= '9') || c == '_' || c == '.' || c == '-';
+    if (!allowed) {
+      return Status::Error(DropReason::kBadGroupName,
+                           "map group name with character code " +
+                               std::to_string(static_cast<int>(static_cast<uint8_t>(c))) +
+                               " (allowed: A-Z a-z 0-9 _ . -)");
+    }
+  }
+  return Status::Ok();
 }
 
 int64_t WallClockMicros() {

@@ -3,7 +3,6 @@
 #include <chrono>
 
 #include <lcm/lcm-cpp.hpp>
-#include <nlohmann/json.hpp>
 
 #include "m2s/common/logging.h"
 
@@ -22,12 +21,13 @@ LcmServerOptions WithInstance(LcmServerOptions options) {
 
 }  // namespace
 
-LcmServer::LcmServer(LcmServerOptions options, SystemFactory factory)
+LcmServer::LcmServer(LcmServerOptions options, SystemFactory factory, MapGroupFactory group_factory)
     : options_(WithInstance(std::move(options))),
       sealer_(options_.bus.key, options_.bus.encrypt,
               static_cast<uint64_t>(options_.server.server_instance)),
       opener_(options_.bus.key, options_.bus.opener),
-      factory_(std::move(factory)) {}
+      factory_(std::move(factory)),
+      group_factory_(std::move(group_factory)) {}
 
 LcmServer::~LcmServer() { Stop(); }
 
@@ -45,7 +45,14 @@ Status LcmServer::Start() {
       [this](const std::string& channel, std::vector<uint8_t> bytes) {
         PublishSealed(channel, bytes);
       },
-      factory_);
+      factory_, group_factory_);
+  for (const auto& [group, path] : options_.group_maps) {
+    if (Status loaded = manager_->LoadGroupMap(group, path); !loaded) {
+      manager_.reset();
+      lcm_.reset();
+      return loaded;
+    }
+  }
   lcm_->subscribe(wire::kFrameChannel, &LcmServer::OnRaw, this);
   lcm_->subscribe(wire::kSessionChannel, &LcmServer::OnRaw, this);
   stop_ = false;
@@ -71,6 +78,7 @@ void LcmServer::Stop() {
     manager_->Shutdown();
     M2S_LOG(kInfo) << "m2s server stopped: " << manager_->StatsLine();
     final_counters_ = manager_->Counters();
+    final_json_ = manager_->StatsJson(options_.bus.key.has_value());
   }
   manager_.reset();
   lcm_.reset();
@@ -124,23 +132,7 @@ ServerCounters LcmServer::Counters() const {
 }
 
 std::string LcmServer::CountersJson() const {
-  const ServerCounters c = Counters();
-  nlohmann::json drops = nlohmann::json::object();
-  for (int r = 0; r < wire::kNumDropReasons; ++r) {
-    drops[wire::ToString(static_cast<wire::DropReason>(r))] = c.drops[r];
-  }
-  const nlohmann::json j = {{"server_instance", options_.server.server_instance},
-                            {"messages_in", c.messages_in},
-                            {"frames_in", c.frames_in},
-                            {"frames_processed", c.frames_processed},
-                            {"frames_skipped", c.frames_skipped},
-                            {"session_messages", c.session_messages},
-                            {"sessions_started", c.sessions_started},
-                            {"sessions_ended", c.sessions_ended},
-                            {"authenticated", options_.bus.key.has_value()},
-                            {"drops_total", c.total_drops()},
-                            {"drops", drops}};
-  return j.dump(2) + "\n";
+  return manager_ ? manager_->StatsJson(options_.bus.key.has_value()) : final_json_;
 }
 
 int64_t LcmServer::server_instance() const { return manager_ ? manager_->server_instance() : 0; }

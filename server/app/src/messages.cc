@@ -68,6 +68,7 @@ map_delta_t ToMapMessage(const slam::MapDelta& delta, int64_t session_id, int64_
     k.id = static_cast<int32_t>(kf.id);
     k.capture_time_us = std::llround(kf.timestamp * 1e6);
     k.world_from_camera = wire::ToMessage(kf.world_from_camera);
+    k.own = kf.own;
     m.keyframes.push_back(k);
   }
   m.num_keyframes = static_cast<int32_t>(m.keyframes.size());

@@ -6,14 +6,11 @@
 #include "m2s/server_app/messages.h"
 
 namespace m2s::server_app {
-namespace {
 
 bool SameCamera(const Camera& a, const Camera& b) {
   return a.width == b.width && a.height == b.height && a.fx == b.fx && a.fy == b.fy &&
          a.cx == b.cx && a.cy == b.cy && a.near == b.near && a.far == b.far;
 }
-
-}  // namespace
 
 Session::Session(SessionManager* manager, int64_t id, uint64_t owner, const Camera& camera,
                  std::unique_ptr<slam::System> system)
@@ -157,7 +154,8 @@ void Session::Finish(const std::string& save_dir) {
   std::lock_guard<std::mutex> tracking(sync_mutex_);
   if (!save_dir.empty() && system_) {
     const std::string path =
-        (std::filesystem::path(save_dir) / ("session_" + std::to_string(id_) + ".m2smap")).string();
+        (std::filesystem::path(save_dir) / ("session_" + std::to_string(id_) + kMapFileExtension))
+            .string();
     const Status saved = system_->SaveMap(path);
     if (saved) {
       M2S_LOG(kInfo) << "session " << id_ << ": map saved to " << path;

@@ -17,6 +17,9 @@
 
 namespace m2s::server_app {
 
+// Every field equal (a session's frames, and an agent and its map group, share one camera).
+bool SameCamera(const Camera& a, const Camera& b);
+
 class Session {
  public:
   using Clock = std::chrono::steady_clock;

@@ -2,8 +2,11 @@
 
 #include <algorithm>
 #include <chrono>
+#include <filesystem>
 #include <random>
 #include <sstream>
+
+#include <nlohmann/json.hpp>
 
 #include "m2s/common/check.h"
 #include "m2s/common/logging.h"
@@ -46,6 +49,8 @@ Status ServerOptions::Check() const {
   if (max_seq_jump <= 0) return Status::Error("max_seq_jump must be positive");
   if (max_ended_sessions <= 0) return Status::Error("max_ended_sessions must be positive");
   if (!(drop_log_period_s >= 0)) return Status::Error("drop_log_period_s must be >= 0");
+  if (max_groups <= 0) return Status::Error("max_groups must be positive");
+  if (Status s = shard.Check(); !s) return s;
   return Status::Ok();
 }
 
@@ -60,13 +65,20 @@ Expected<std::unique_ptr<slam::System>> SessionManager::DefaultSystemFactory(
   return slam::System::Create(options);
 }
 
-SessionManager::SessionManager(ServerOptions options, PublishFn publish, SystemFactory factory)
+Expected<std::shared_ptr<slam::MapGroup>> SessionManager::DefaultMapGroupFactory(
+    const slam::Options& options) {
+  return slam::MapGroup::Create(options);
+}
+
+SessionManager::SessionManager(ServerOptions options, PublishFn publish, SystemFactory factory,
+                               MapGroupFactory group_factory)
     : options_(WithInstance(std::move(options))),
       publish_(std::move(publish)),
-      factory_(std::move(factory)) {
+      factory_(std::move(factory)),
+      group_factory_(std::move(group_factory)) {
   const Status valid = options_.Check();
   M2S_CHECK(valid) << valid.message();
-  M2S_CHECK(publish_ && factory_) << "publish and factory must be set";
+  M2S_CHECK(publish_ && factory_ && group_factory_) << "publish and factories must be set";
   tracking_ms_ring_.reserve(kTrackingRingSize);
   last_drop_log_s_.fill(-1e9);
   reaper_ = std::thread([this] { ReaperLoop(); });
@@ -94,7 +106,15 @@ void SessionManager::HandleFrame(const void* data, size_t size, uint64_t sender)
   auto frame = wire::DecodeFeatureFrame(data, size, {options_.max_features});
   if (!frame) return Drop(frame.reason(), frame.error());
   wire::DropReason reason{};
-  auto session = FindOrCreate(frame->session_id, sender, frame->camera, 0, false, &reason);
+  bool not_ours = false;
+  auto session = FindOrCreate({.session_id = frame->session_id,
+                               .sender = sender,
+                               .camera = frame->camera,
+                               .flags = 0,
+                               .from_hello = false,
+                               .group = {}},
+                              &reason, &not_ours);
+  if (not_ours) return;
   if (!session) return Drop(reason, "frame for session " + std::to_string(frame->session_id));
   std::string detail;
   if (!session->Accept(std::move(*frame), &reason, &detail)) return Drop(reason, detail);
@@ -108,15 +128,30 @@ void SessionManager::HandleSessionControl(const void* data, size_t size, uint64_
   const session_control_t& m = *message;
   switch (m.type) {
     case session_control_t::HELLO: {
+      const uint64_t key =
+          m.map_group.empty() ? ShardKeyOfSession(m.session_id) : ShardKeyOfGroup(m.map_group);
+      if (!options_.shard.Owns(key)) {
+        std::lock_guard<std::mutex> lock(mutex_);
+        ++counters_.other_shard_hellos;
+        return;
+      }
       auto camera = wire::FromMessage(m.camera);  // checked by the decoder
       wire::DropReason reason{};
-      auto session = FindOrCreate(m.session_id, sender, *camera, m.flags, true, &reason);
+      bool not_ours = false;
+      auto session = FindOrCreate({.session_id = m.session_id,
+                                   .sender = sender,
+                                   .camera = *camera,
+                                   .flags = m.flags,
+                                   .from_hello = true,
+                                   .group = m.map_group},
+                                  &reason, &not_ours);
       if (!session) return Drop(reason, "HELLO for session " + std::to_string(m.session_id));
       session->Touch();
       session_control_t ack =
           MakeSessionMessage(session_control_t::HELLO_ACK, m.session_id, server_instance());
       ack.camera = wire::ToMessage(session->camera());
       ack.flags = m.flags;
+      ack.map_group = m.map_group;
       Publish(wire::kSessionChannel, wire::Encode(ack));
       break;
     }
@@ -128,6 +163,11 @@ void SessionManager::HandleSessionControl(const void* data, size_t size, uint64_
         std::lock_guard<std::mutex> lock(mutex_);
         auto it = sessions_.find(m.session_id);
         if (it != sessions_.end()) session = it->second;
+      }
+      if (!session && options_.shard.sharded()) {
+        std::lock_guard<std::mutex> lock(mutex_);
+        ++counters_.other_shard_messages;  // most likely another server's session
+        return;
       }
       if (!session) {
         return Drop(wire::DropReason::kUnknownSession,
@@ -154,13 +194,13 @@ void SessionManager::HandleSessionControl(const void* data, size_t size, uint64_
   ++counters_.session_messages;
 }
 
-std::shared_ptr<Session> SessionManager::FindOrCreate(int64_t session_id, uint64_t sender,
-                                                      const Camera& camera, int32_t flags,
-                                                      bool from_hello, wire::DropReason* refused) {
+std::shared_ptr<Session> SessionManager::FindOrCreate(const Opening& opening,
+                                                      wire::DropReason* refused, bool* not_ours) {
+  const int64_t session_id = opening.session_id;
   std::unique_lock<std::mutex> lock(mutex_);
   auto it = sessions_.find(session_id);
   if (it != sessions_.end()) {
-    if (it->second->owner() == sender) return it->second;
+    if (it->second->owner() == opening.sender) return it->second;
     *refused = wire::DropReason::kSpoofedSession;
     return nullptr;
   }
@@ -168,33 +208,154 @@ std::shared_ptr<Session> SessionManager::FindOrCreate(int64_t session_id, uint64
     *refused = wire::DropReason::kEndedSession;
     return nullptr;
   }
+  if (!opening.from_hello && options_.shard.sharded()) {
+    *not_ours = true;  // sharded servers open sessions from HELLOs only
+    ++counters_.other_shard_messages;
+    return nullptr;
+  }
+  std::unique_ptr<slam::System> system;
+  std::string why;
   if (static_cast<int>(sessions_.size()) >= options_.max_sessions) {
     *refused = wire::DropReason::kMaxSessions;
-    lock.unlock();
-    session_control_t reply =
-        MakeSessionMessage(session_control_t::REJECTED, session_id, server_instance());
-    reply.reason = "server full: " + std::to_string(options_.max_sessions) + " sessions";
-    Publish(wire::kSessionChannel, wire::Encode(reply));
-    return nullptr;
+    why = "server full: " + std::to_string(options_.max_sessions) + " sessions";
+  } else {
+    CreateSystemLocked(opening, &system, refused, &why);
   }
-  slam::Options slam_options = options_.slam;
-  slam_options.camera = camera;
-  slam_options.max_features_per_frame = options_.max_features;
-  if (flags & session_control_t::FLAG_DETERMINISTIC) slam_options.deterministic = true;
-  auto system = factory_(slam_options);
   if (!system) {
-    *refused = wire::DropReason::kBadCamera;
-    M2S_LOG(kWarning) << "session " << session_id
-                      << ": SLAM refused the options: " << system.error();
+    // A session refused for good (its camera is not its group's) takes no frames either.
+    if (*refused == wire::DropReason::kGroupCamera) RememberEndedLocked(session_id);
+    lock.unlock();
+    if (!why.empty()) PublishRejected(session_id, why);
     return nullptr;
   }
-  auto session = std::make_shared<Session>(this, session_id, sender, camera, std::move(*system));
+  auto session = std::make_shared<Session>(this, session_id, opening.sender, opening.camera,
+                                           std::move(system));
   sessions_[session_id] = session;
   ++counters_.sessions_started;
+  const Camera& camera = opening.camera;
   M2S_LOG(kInfo) << "session " << session_id << " started (" << camera.width << "x" << camera.height
-                 << (from_hello ? ", hello" : ", first frame")
-                 << (slam_options.deterministic ? ", deterministic" : "") << ")";
+                 << (opening.from_hello ? ", hello" : ", first frame")
+                 << (opening.group.empty() ? "" : ", map group " + opening.group)
+                 << ((opening.flags & session_control_t::FLAG_DETERMINISTIC) ? ", deterministic"
+                                                                             : "")
+                 << ")";
   return session;
+}
+
+bool SessionManager::CreateSystemLocked(const Opening& opening,
+                                        std::unique_ptr<slam::System>* system,
+                                        wire::DropReason* refused, std::string* why) {
+  slam::Options slam_options = options_.slam;
+  slam_options.camera = opening.camera;
+  slam_options.max_features_per_frame = options_.max_features;
+  if (opening.flags & session_control_t::FLAG_DETERMINISTIC) slam_options.deterministic = true;
+  Expected<std::unique_ptr<slam::System>> created = Status::Error("no system");
+  if (opening.group.empty()) {
+    created = factory_(slam_options);
+  } else {
+    auto it = groups_.find(opening.group);
+    if (it == groups_.end()) {
+      if (static_cast<int>(groups_.size()) >= options_.max_groups) {
+        ++counters_.groups_refused;
+        *refused = wire::DropReason::kMaxGroups;
+        *why = "server full: " + std::to_string(options_.max_groups) + " map groups";
+        return false;
+      }
+      auto group = group_factory_(slam_options);
+      if (!group) {
+        *refused = wire::DropReason::kBadCamera;
+        *why = "map group " + opening.group + " not created: " + group.error();
+        M2S_LOG(kWarning) << "session " << opening.session_id << ": " << *why;
+        return false;
+      }
+      it = groups_.emplace(opening.group, std::move(*group)).first;
+      ++counters_.groups_created;
+      M2S_LOG(kInfo) << "map group " << opening.group << " created";
+    }
+    if (!SameCamera(opening.camera, it->second->options().camera)) {
+      *refused = wire::DropReason::kGroupCamera;
+      *why = "camera differs from map group " + opening.group + "'s";
+      return false;
+    }
+    created = it->second->Join();
+  }
+  if (!created) {
+    *refused = wire::DropReason::kBadCamera;
+    *why = "SLAM refused the session: " + created.error();
+    M2S_LOG(kWarning) << "session " << opening.session_id << ": " << *why;
+    return false;
+  }
+  *system = std::move(*created);
+  return true;
+}
+
+void SessionManager::PublishRejected(int64_t session_id, const std::string& why) {
+  session_control_t reply =
+      MakeSessionMessage(session_control_t::REJECTED, session_id, server_instance());
+  reply.reason = why;
+  Publish(wire::kSessionChannel, wire::Encode(reply));
+}
+
+Status SessionManager::LoadGroupMap(const std::string& name, const std::string& path) {
+  if (name.empty()) return Status::Error("map group name is empty");
+  if (Status valid = wire::CheckMapGroupName(name); !valid) return valid;
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (groups_.count(name)) return Status::Error("map group " + name + " exists already");
+  if (static_cast<int>(groups_.size()) >= options_.max_groups) {
+    return Status::Error("more than max_groups (" + std::to_string(options_.max_groups) +
+                         ") map groups");
+  }
+  slam::Options slam_options = options_.slam;
+  slam_options.max_features_per_frame = options_.max_features;
+  auto group = group_factory_(slam_options);
+  if (!group) return Status::Error("map group " + name + " not created: " + group.error());
+  if (Status loaded = (*group)->LoadMap(path); !loaded) {
+    return loaded.Prefixed("map group " + name + ": " + path + ": ");
+  }
+  groups_.emplace(name, std::move(*group));
+  ++counters_.groups_created;
+  M2S_LOG(kInfo) << "map group " << name << " loaded from " << path;
+  return Status::Ok();
+}
+
+std::vector<GroupReport> SessionManager::Groups() const {
+  std::vector<std::pair<std::string, std::shared_ptr<slam::MapGroup>>> groups;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    groups.assign(groups_.begin(), groups_.end());
+  }
+  std::vector<GroupReport> reports;
+  for (const auto& [name, group] : groups) reports.push_back({name, group->Stats()});
+  return reports;
+}
+
+void SessionManager::SaveGroupMaps() {
+  std::vector<std::pair<std::string, std::shared_ptr<slam::MapGroup>>> groups;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (groups_saved_ || options_.save_maps_dir.empty()) return;
+    groups_saved_ = true;
+    groups.assign(groups_.begin(), groups_.end());
+  }
+  for (const auto& [name, group] : groups) {
+    const std::string path =
+        (std::filesystem::path(options_.save_maps_dir) / ("group-" + name + kMapFileExtension))
+            .string();
+    if (Status saved = group->SaveMap(path); saved) {
+      M2S_LOG(kInfo) << "map group " << name << ": map saved to " << path;
+    } else {
+      M2S_LOG(kWarning) << "map group " << name << ": saving the map failed: " << saved.message();
+    }
+  }
+}
+
+void SessionManager::RememberEndedLocked(int64_t session_id) {
+  ended_[session_id] = true;
+  ended_order_.push_back(session_id);
+  while (static_cast<int>(ended_order_.size()) > options_.max_ended_sessions) {
+    ended_.erase(ended_order_.front());
+    ended_order_.pop_front();
+  }
 }
 
 void SessionManager::EndSession(int64_t session_id, const std::string& reason) {
@@ -205,12 +366,7 @@ void SessionManager::EndSession(int64_t session_id, const std::string& reason) {
     if (it == sessions_.end()) return;
     session = it->second;
     sessions_.erase(it);
-    ended_[session_id] = true;
-    ended_order_.push_back(session_id);
-    while (static_cast<int>(ended_order_.size()) > options_.max_ended_sessions) {
-      ended_.erase(ended_order_.front());
-      ended_order_.pop_front();
-    }
+    RememberEndedLocked(session_id);
     ++counters_.sessions_ended;
   }
   session->Stop();  // outside mutex_: the session calls back into the counters
@@ -258,6 +414,7 @@ void SessionManager::Shutdown() {
     reap_cv_.notify_all();
   }
   if (reaper_.joinable()) reaper_.join();
+  SaveGroupMaps();  // after every agent finished
 }
 
 void SessionManager::Drain() {
@@ -332,7 +489,48 @@ ServerCounters SessionManager::Counters() const {
   counters.frames_processed = frames_processed_.load();
   counters.frames_skipped = frames_skipped_.load();
   counters.sessions_active = static_cast<int>(sessions_.size());
+  counters.groups = static_cast<int>(groups_.size());
   return counters;
+}
+
+std::string SessionManager::StatsJson(bool authenticated) const {
+  const ServerCounters c = Counters();
+  nlohmann::json drops = nlohmann::json::object();
+  for (int r = 0; r < wire::kNumDropReasons; ++r) {
+    drops[wire::ToString(static_cast<wire::DropReason>(r))] = c.drops[r];
+  }
+  nlohmann::json groups = nlohmann::json::array();
+  for (const GroupReport& g : Groups()) {
+    groups.push_back({{"name", g.name},
+                      {"agents_joined", g.stats.agents_joined},
+                      {"agents_active", g.stats.agents_active},
+                      {"merges", g.stats.merges},
+                      {"merge_ms", g.stats.merge_ms},
+                      {"keyframes", g.stats.keyframes},
+                      {"map_points", g.stats.map_points},
+                      {"localization_only", g.stats.localization_only}});
+  }
+  const nlohmann::json j = {{"server_instance", server_instance()},
+                            {"shard", options_.shard.ToString()},
+                            {"shard_index", options_.shard.index},
+                            {"shard_count", options_.shard.count},
+                            {"messages_in", c.messages_in},
+                            {"frames_in", c.frames_in},
+                            {"frames_processed", c.frames_processed},
+                            {"frames_skipped", c.frames_skipped},
+                            {"session_messages", c.session_messages},
+                            {"sessions_started", c.sessions_started},
+                            {"sessions_ended", c.sessions_ended},
+                            {"sessions_active", c.sessions_active},
+                            {"other_shard_hellos", c.other_shard_hellos},
+                            {"other_shard_messages", c.other_shard_messages},
+                            {"groups_created", c.groups_created},
+                            {"groups_refused", c.groups_refused},
+                            {"groups", groups},
+                            {"authenticated", authenticated},
+                            {"drops_total", c.total_drops()},
+                            {"drops", drops}};
+  return j.dump(2) + "\n";
 }
 
 server_stats_t SessionManager::StatsMessage() const {

@@ -32,7 +32,8 @@ class ScriptedTransport final : public Transport {
         auto m = wire::DecodeSessionControl(bytes.data(), bytes.size());
         if (m->type == session_control_t::HELLO) {
           ++hellos;
-          hello = *m;
+          map_group = m->map_group;
+          if (hellos > lost_hellos) hello = *m;
         }
       }
     }
@@ -68,6 +69,8 @@ class ScriptedTransport final : public Transport {
   std::mutex mutex_;
   std::vector<wire::FeatureFrame> frames;
   int hellos = 0;
+  int lost_hellos = 0;    // the first HELLOs are not answered (lost, or another shard's)
+  std::string map_group;  // of the last HELLO
 
  private:
   MessageHandler handler_;
@@ -159,6 +162,62 @@ TEST(ClientSessionTrustTest, ASessionTheServerStopsAnsweringIsRenewed) {
   const ClientCounters c = session.Counters();
   EXPECT_EQ(c.server_restarts, 1);
   EXPECT_EQ(c.sessions_started, 2);
+}
+
+// A sharded server opens a session only from its HELLO: the client repeats it every
+// hello_resend_s (on its clock) until acknowledged or refused, with the map group.
+TEST(ClientSessionTrustTest, HelloIsRepeatedUntilAnsweredAndNamesTheMapGroup) {
+  ScriptedTransport transport;
+  transport.lost_hellos = 2;
+  ClientSessionOptions options;
+  options.map_group = "room-a";
+  options.hello_timeout_s = 0.0;  // Start() does not wait
+  options.hello_resend_s = 0.25;
+  double now_s = 100.0;
+  options.clock_s = [&now_s] { return now_s; };
+  ClientSession session(&transport, options);
+  ASSERT_TRUE(session.Start().ok());
+  EXPECT_EQ(transport.hellos, 1);
+  ASSERT_TRUE(session.Send(Frame(0)).ok());  // not due yet
+  EXPECT_EQ(transport.hellos, 1);
+  now_s += 0.25;
+  ASSERT_TRUE(session.Send(Frame(1)).ok());  // repeated, lost again
+  EXPECT_EQ(transport.hellos, 2);
+  EXPECT_EQ(session.server_instance(), 0);
+  now_s += 0.25;
+  ASSERT_TRUE(session.Send(Frame(2)).ok());  // repeated, acknowledged
+  EXPECT_EQ(transport.hellos, 3);
+  EXPECT_EQ(session.server_instance(), kServer);
+  now_s += 1.0;
+  ASSERT_TRUE(session.Send(Frame(3)).ok());  // no repeats once acknowledged
+  EXPECT_EQ(transport.hellos, 3);
+  EXPECT_EQ(transport.map_group, "room-a");
+  // The frames before the acknowledgement were held back (a group session's frames must not
+  // reach a server before its HELLO).
+  ASSERT_EQ(transport.frames.size(), 2u);
+  EXPECT_EQ(transport.frames[0].seq, 3);
+  EXPECT_FALSE(session.Records()[0].answered);
+  const ClientCounters c = session.Counters();
+  EXPECT_EQ(c.frames_held, 2);
+  EXPECT_EQ(c.hellos_sent, 3);
+  EXPECT_EQ(c.servers_seen, 1);
+  EXPECT_EQ(c.sessions_started, 1);
+
+  // A refusal stops the repeats too.
+  ScriptedTransport refusing;
+  refusing.lost_hellos = 100;
+  ClientSession refused(&refusing, options);
+  ASSERT_TRUE(refused.Start().ok());
+  refusing.Control(session_control_t::REJECTED, kServer, refused.session_id());
+  now_s += 1.0;
+  ASSERT_TRUE(refused.Send(Frame(0)).ok());
+  EXPECT_EQ(refusing.hellos, 1);
+  EXPECT_EQ(refused.Counters().rejected, 1);
+
+  ClientSessionOptions bad = options;
+  bad.map_group = "room a";
+  ScriptedTransport unused;
+  EXPECT_EQ(ClientSession(&unused, bad).Start().reason(), DropReason::kBadGroupName);
 }
 
 }  // namespace

@@ -256,10 +256,11 @@ std::vector<uint8_t> EncodedSessionControl(const std::string& client_name,
 constexpr size_t kClientNameLengthOffset = 8 + 2 + 1 + 4 * 8;
 
 TEST(WireFormatTest, SessionControlWithStringLengthInt32MinIsBadBytes) {
-  // The 115-byte message of the security review: a two-character client name whose length
-  // field says 0x80000000 (lcm-gen's decoder computes len - 1 on it and reads 2 GiB).
+  // The message of the security review (115 bytes then, 120 with the empty map group): a
+  // two-character client name whose length field says 0x80000000 (lcm-gen's decoder computes
+  // len - 1 on it and reads 2 GiB).
   std::vector<uint8_t> bytes = EncodedSessionControl("m2", "");
-  ASSERT_EQ(bytes.size(), 115u);
+  ASSERT_EQ(bytes.size(), 120u);
   ASSERT_TRUE(DecodeSessionControl(bytes.data(), bytes.size()).ok());
   PutI32(&bytes, kClientNameLengthOffset, 0x80000000u);
   const auto decoded = DecodeSessionControl(bytes.data(), bytes.size());
@@ -384,6 +385,61 @@ TEST(WireFormatTest, AnyTamperedInt32NeverCrashesADecoder) {
       }
     }
   }
+}
+
+TEST(WireFormatTest, SessionControlCarriesTheMapGroup) {
+  session_control_t m{};
+  m.version = session_control_t::VERSION;
+  m.type = session_control_t::HELLO;
+  m.camera = ToMessage(Camera());
+  const std::string longest(kMaxMapGroupName, 'g');
+  for (const std::string& name : {std::string(), std::string("room-A_2.b"), longest}) {
+    m.map_group = name;
+    const std::vector<uint8_t> bytes = Encode(m);
+    const auto decoded = DecodeSessionControl(bytes.data(), bytes.size());
+    ASSERT_TRUE(decoded.ok()) << decoded.error();
+    EXPECT_EQ(decoded->map_group, name);
+  }
+  // Too long, or a character outside [A-Za-z0-9_.-]: dropped as kBadGroupName, whatever the
+  // message type, with a message that says what is wrong.
+  const std::pair<std::string, std::string> bad[] = {{longest + "g", "65 characters"},
+                                                     {"room a", "character code 32"},
+                                                     {"room/a", "character code 47"},
+                                                     {"caf\xc3\xa9", "character code 195"},
+                                                     {"a\nb", "character code 10"}};
+  for (const int8_t type : {session_control_t::HELLO, session_control_t::BYE}) {
+    m.type = type;
+    for (const auto& [name, says] : bad) {
+      m.map_group = name;
+      const std::vector<uint8_t> bytes = Encode(m);
+      const auto decoded = DecodeSessionControl(bytes.data(), bytes.size());
+      ASSERT_FALSE(decoded.ok()) << name;
+      EXPECT_EQ(decoded.reason(), DropReason::kBadGroupName) << name;
+      EXPECT_NE(decoded.error().find(says), std::string::npos) << decoded.error();
+      EXPECT_NE(decoded.error().find("map group"), std::string::npos) << decoded.error();
+    }
+  }
+  EXPECT_STREQ(ToString(DropReason::kBadGroupName), "bad_group_name");
+}
+
+TEST(WireFormatTest, MapDeltaKeyframesCarryOwnership) {
+  map_delta_t delta{};
+  delta.version = map_delta_t::VERSION;
+  delta.num_keyframes = 2;
+  delta.keyframes.resize(2);
+  for (int i = 0; i < 2; ++i) {
+    delta.keyframes[i].id = 10 + i;
+    delta.keyframes[i].world_from_camera = ToMessage(Pose3());
+    delta.keyframes[i].own = i == 0;
+  }
+  const std::vector<uint8_t> bytes = Encode(delta);
+  const auto decoded = DecodeMapDelta(bytes.data(), bytes.size());
+  ASSERT_TRUE(decoded.ok()) << decoded.error();
+  ASSERT_EQ(decoded->keyframes.size(), 2u);
+  EXPECT_TRUE(decoded->keyframes[0].own);
+  EXPECT_FALSE(decoded->keyframes[1].own);
+  // Each keyframe is 4 + 8 + 56 + 1 bytes: a delta cut inside the last one is bad bytes.
+  EXPECT_EQ(DecodeMapDelta(bytes.data(), bytes.size() - 4 * 4 - 1).reason(), DropReason::kBadBytes);
 }
 
 TEST(WireFormatTest, MapDeltaCountsAreCheckedAgainstTheBytesLeft) {

@@ -1,10 +1,17 @@
 // ClientSession: one client's conversation with a SLAM server over any Transport.
 //
-// Start() opens the transport and says HELLO (with the camera and, for reproducible runs, the
-// FLAG_DETERMINISTIC flag); Send() stamps and publishes encoded frames (sequence numbers
-// restart at 1 in every session); pose estimates are matched to the frames by sequence number
-// (latency = pose received - frame sent, both on this client's steady clock); map deltas keep
-// a MapReplica current, a revision gap triggers a rate-limited RESYNC_REQUEST.
+// Start() opens the transport and says HELLO (with the camera, the map group to join if any
+// and, for reproducible runs, the FLAG_DETERMINISTIC flag). The HELLO is repeated every
+// hello_resend_s until a HELLO_ACK or a REJECTED arrives (Start() waits up to hello_timeout_s
+// for it, Send() keeps repeating it): a sharded server (m2s_server --shard) opens sessions only
+// from a HELLO and ignores frames that come before it, and only the server of the session's
+// shard answers. A session with a map group sends no frame before the acknowledgement (such
+// frames are recorded, never answered: frames_held).
+//
+// Send() stamps and publishes encoded frames (sequence numbers restart at 1 in every session);
+// pose estimates are matched to the frames by sequence number (latency = pose received - frame
+// sent, both on this client's steady clock); map deltas keep a MapReplica current, a revision
+// gap triggers a rate-limited RESYNC_REQUEST.
 //
 // Trust: the session belongs to the server instance whose HELLO_ACK answered it. Poses, map
 // deltas, SESSION_ENDED and REJECTED from any other instance are counted
@@ -31,6 +38,7 @@
 #include <mutex>
 #include <optional>
 #include <random>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -46,10 +54,12 @@ struct ClientSessionOptions {
   // Ask the server for deterministic SLAM (HELLO flag), for --fast runs and their replays.
   bool deterministic = false;
   std::string client_name = "m2s_client";
-  // The map group the session joins, sent in its HELLO (empty: a map of its own).
+  // The map group the session joins (empty: none); wire::CheckMapGroupName must accept it.
   std::string map_group;
-  // How long Start() waits for HELLO_ACK (frames also open the session, so this is not fatal).
+  // How long Start() waits for HELLO_ACK (an unsharded server also opens the session from
+  // frames, so this is not fatal), and the period of HELLO repeats until it arrives.
   double hello_timeout_s = 2.0;
+  double hello_resend_s = 0.25;
   // Least time between two resync requests while the replica has a gap.
   double resync_min_interval_s = 0.25;
   // Seed for session ids (0: random).
@@ -87,8 +97,11 @@ struct ClientCounters {
   int64_t sessions_started = 0;
   int64_t server_restarts = 0;  // sessions given up: the server stopped answering
   int64_t sessions_ended_by_server = 0;
-  int64_t rejected = 0;                 // REJECTED by the server (e.g. full)
-  int64_t acks = 0;                     // HELLO_ACKs received for our sessions
+  int64_t rejected = 0;      // REJECTED by the server (e.g. full)
+  int64_t acks = 0;          // HELLO_ACKs received for our sessions
+  int64_t hellos_sent = 0;   // first HELLOs and repeats
+  int64_t servers_seen = 0;  // distinct server instances that acknowledged a HELLO
+  int64_t frames_held = 0;   // with a map group, not sent: the HELLO was not acknowledged yet
   int64_t foreign_server_messages = 0;  // for our session, from another server instance
   int64_t poses_received = 0;
   int64_t deltas_applied = 0;
@@ -122,6 +135,8 @@ class ClientSession {
   int64_t session_id() const;
   int64_t server_instance() const;
   std::optional<server_stats_t> LastStats() const;
+  // The reason of the last REJECTED the session believed (empty: none).
+  std::string LastRejection() const;
   Transport* transport() { return transport_; }
 
  private:
@@ -135,6 +150,10 @@ class ClientSession {
   void CheckAnsweredLocked(double now_s);
   void BeginSession();
   void PublishControl(int8_t type, int64_t session_id, int64_t last_revision);
+  // Publishes the current session's HELLO.
+  void SendHello();
+  // Repeats the HELLO when unacknowledged for hello_resend_s; returns whether it did.
+  bool ResendHelloIfDue();
 
   Transport* const transport_;
   const ClientSessionOptions options_;
@@ -150,10 +169,14 @@ class ClientSession {
   int64_t session_id_ = 0;
   int64_t server_instance_ = 0;
   bool acked_ = false;
+  bool rejected_ = false;  // REJECTED before an acknowledgement
+  std::string last_rejection_;
   bool new_session_pending_ = false;
   int64_t next_seq_ = 1;
-  int64_t session_first_seq_ = 1;     // client-wide seq of the session's first frame
-  double last_answer_s_ = 0.0;        // HELLO or the last answer of the owning server
+  int64_t session_first_seq_ = 1;  // client-wide seq of the session's first frame
+  double last_answer_s_ = 0.0;     // HELLO or the last answer of the owning server
+  double last_hello_s_ = 0.0;
+  std::set<int64_t> servers_seen_;    // instances that acknowledged a HELLO of ours
   bool outstanding_ = false;          // frames sent since that answer
   std::vector<FrameRecord> records_;  // records_[seq - 1]
   ClientCounters counters_;

@@ -30,7 +30,8 @@ struct ReplicaKeyframe {
   int32_t id = 0;
   double timestamp = 0.0;  // seconds
   Pose3 world_from_camera;
-  bool own = true;  // created by this agent; false: by another agent of its map group
+  // Created by this session's agent (false: by another agent of its map group).
+  bool own = true;
 };
 
 struct MapSnapshot {

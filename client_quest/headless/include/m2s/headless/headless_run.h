@@ -48,6 +48,8 @@ struct HeadlessOptions {
   server_app::ServerOptions server;
   // When not empty, every message the client publishes is also written to this LCM log.
   std::string record_log;
+  // The map group the session joins (m2s_client --map-group; empty: none).
+  std::string map_group;
   // Session ids (0: random).
   uint64_t session_seed = 0;
   // Called after each frame is sent, with its index (tests inject events here).

@@ -39,7 +39,9 @@ struct RunInfo {
   int64_t bus_refused = 0;              // refused by the bus checks (forged, replayed, stale)
   int64_t foreign_server_messages = 0;  // for our session from another server instance
   double wall_s = 0.0;
-  bool render_map = true;  // write map.png
+  bool render_map = true;    // write map.png
+  std::string map_group;     // the map group the client joined (empty: none)
+  int64_t servers_seen = 0;  // distinct server instances that acknowledged the client
 };
 
 // One client session of a run (a run has several when the server ended or stopped answering
@@ -81,6 +83,11 @@ struct RunMetrics {
   int64_t map_points = 0;
   std::string projector;
   double fps = 0.0;
+  std::optional<std::string> map_group;  // null in metrics.json without a group
+  int64_t servers_seen = 0;
+  // With a map group: seconds from the first frame sent to the first tracked pose in the
+  // group's map (map_id 0), on the client's steady clock; null without a group or never.
+  std::optional<double> merged_at_s;
   std::string map_png;         // path, empty when not written
   std::string trajectory_png;  // path
   std::vector<SessionMetrics> sessions;
@@ -90,6 +97,10 @@ Expected<RunMetrics> WriteRunOutputs(const std::string& out_dir,
                                      const std::vector<client::FrameRecord>& records,
                                      const client::MapSnapshot& map, const Scene* scene,
                                      const Camera& camera, const RunInfo& info);
+
+// Seconds from the first frame sent to the arrival of the first tracked pose whose map_id is 0
+// (the map group's map); nullopt when there is none.
+std::optional<double> FirstPoseInGroupMapSeconds(const std::vector<client::FrameRecord>& records);
 
 // One line: frames, ATE, map error, latency, tracking time, output folder.
 std::string SummaryLine(const RunMetrics& metrics, const std::string& out_dir);

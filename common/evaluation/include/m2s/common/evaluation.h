@@ -97,6 +97,29 @@ Expected<TrajectoryEvaluation> EvaluateTrajectory(const Trajectory& reference,
                                                   const Trajectory& estimate,
                                                   const EvaluationOptions& options = {});
 
+// Several agents' trajectories in one world (the agents of a map group), each with its own
+// ground truth in the common ground-truth world.
+struct AgentTrajectories {
+  Trajectory reference;
+  Trajectory estimate;
+};
+
+struct GroupEvaluation {
+  // The joint alignment: ONE transform for every agent's matched positions together, so the
+  // joint ATE is small only when the agents' estimates share one world.
+  Sim3 reference_from_estimate;
+  double scale = 1.0;
+  std::vector<double> ate_errors;  // joint, the agents' matched pairs in order
+  ErrorStats ate;
+  // Each agent on its own (its own alignment, as EvaluateTrajectory).
+  std::vector<TrajectoryEvaluation> agents;
+};
+
+// Fails as EvaluateTrajectory for any agent (the message names it) or when the joint alignment
+// is impossible.
+Expected<GroupEvaluation> EvaluateGroup(const std::vector<AgentTrajectories>& agents,
+                                        const EvaluationOptions& options = {});
+
 // The reference interpolated at each timestamp of `estimate` that lies inside the reference's
 // time range (other timestamps are dropped): the ground truth to compare a trajectory estimated
 // from frames rendered at those times. Fails when no timestamp is inside the range.

@@ -32,6 +32,9 @@ enum class DropReason : int {
   kNonFiniteTimestamp,  // a frame whose timestamp is NaN / infinite
   kTimestampGoingBack,  // a frame older than the last accepted one
   kNonFiniteUv,         // a feature at NaN / infinite image coordinates
+  kBadGroupName,        // a map group name too long or with characters outside [A-Za-z0-9_.-]
+  kGroupCamera,         // a session whose camera differs from its map group's camera
+  kMaxGroups,           // a new map group while the server holds its maximum of groups
   kCount,
 };
 inline constexpr int kNumDropReasons = static_cast<int>(DropReason::kCount);

@@ -24,6 +24,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -95,6 +96,11 @@ feature_frame_t ToMessage(const FeatureFrame& frame);
 // Validates a decoded message (everything but the byte layout).
 Expected<FeatureFrame> FromMessage(const feature_frame_t& message, const FrameLimits& limits);
 
+// Map group names (session_control_t::map_group): at most kMaxMapGroupName characters of
+// [A-Za-z0-9_.-]; empty means no group. Fails with DropReason::kBadGroupName.
+inline constexpr size_t kMaxMapGroupName = 64;
+Status CheckMapGroupName(std::string_view name);
+
 // Byte-level encode / decode with validation.
 template <typename Message>
 std::vector<uint8_t> Encode(const Message& message) {
@@ -108,7 +114,8 @@ size_t FeatureFrameEncodedSize(size_t num_features);
 
 Expected<FeatureFrame> DecodeFeatureFrame(const void* data, size_t size, const FrameLimits& limits);
 // The other messages: byte layout, fingerprint and version checked; finite poses checked for
-// poses and keyframes; session_control_t's camera is checked only for HELLO.
+// poses and keyframes; session_control_t's camera is checked only for HELLO, its map_group
+// (CheckMapGroupName) for every type.
 Expected<session_control_t> DecodeSessionControl(const void* data, size_t size);
 Expected<pose_estimate_t> DecodePoseEstimate(const void* data, size_t size);
 Expected<map_delta_t> DecodeMapDelta(const void* data, size_t size);

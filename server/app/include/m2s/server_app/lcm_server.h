@@ -18,6 +18,7 @@
 #pragma once
 
 #include <atomic>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -43,22 +44,27 @@ struct LcmServerOptions {
   // Shared secret of the bus (none: open bus), payload encryption, replay checks.
   wire::BusSecurityOptions bus;
   ServerOptions server;
+  // Map groups created at Start() from saved maps: group name -> map file
+  // (SessionManager::LoadGroupMap; the groups' camera is server.slam.camera).
+  std::map<std::string, std::string> group_maps;
 };
 
 class LcmServer {
  public:
   explicit LcmServer(LcmServerOptions options,
-                     SystemFactory factory = &SessionManager::DefaultSystemFactory);
+                     SystemFactory factory = &SessionManager::DefaultSystemFactory,
+                     MapGroupFactory group_factory = &SessionManager::DefaultMapGroupFactory);
   ~LcmServer();  // Stop()
 
-  // Opens the LCM URL, subscribes and starts the IO thread.
+  // Opens the LCM URL, loads the group maps, subscribes and starts the IO thread.
   Status Start();
   // Ends every session and stops the IO thread. Idempotent.
   void Stop();
 
   // The counters; after Stop() the final ones.
   ServerCounters Counters() const;
-  // Counters as JSON (drops by reason name), e.g. for m2s_server --stats-out.
+  // Counters, map groups and drops by reason name as JSON (SessionManager::StatsJson), e.g.
+  // for m2s_server --stats-out; after Stop() the final ones.
   std::string CountersJson() const;
   int64_t server_instance() const;
   SessionManager* manager() { return manager_.get(); }
@@ -73,12 +79,14 @@ class LcmServer {
   wire::BusSealer sealer_;
   wire::BusOpener opener_;
   const SystemFactory factory_;
+  const MapGroupFactory group_factory_;
   std::unique_ptr<lcm::LCM> lcm_;
   std::mutex publish_mutex_;
   std::unique_ptr<SessionManager> manager_;
   std::atomic<bool> stop_{false};
   std::thread io_thread_;
   ServerCounters final_counters_;
+  std::string final_json_;
 };
 
 }  // namespace m2s::server_app

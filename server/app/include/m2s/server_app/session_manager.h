@@ -2,12 +2,21 @@
 // session control), encoded pose estimates, map deltas and session replies out. The LCM server
 // (lcm_server.h), the on-device client transport and the replay tool all run this same code.
 //
-// Each session owns one slam::System and a worker thread fed by a bounded latest-wins queue:
-// HandleMessage() only decodes, validates and queues, so the caller (the IO thread) never waits
-// for SLAM. With Options::synchronous the frame is tracked in the caller's thread instead
-// (replay: every frame, deterministic). Everything that cannot be used is counted per
-// wire::DropReason and dropped with a rate-limited log line. Memory is bounded: at most
-// max_sessions sessions, queue_capacity frames each, a bounded set of ended session ids.
+// Each session owns one slam::System (its own, or an agent of a map group: a HELLO naming a
+// group makes the session an agent of this server's slam::MapGroup of that name, created on the
+// group's first session and kept when its sessions end; a session whose camera is not the
+// group's is REJECTED and its id served no more) and a worker thread fed by a bounded
+// latest-wins queue: HandleMessage() only decodes, validates and queues, so the caller (the IO
+// thread) never waits for SLAM. With Options::synchronous the frame is tracked in the caller's
+// thread instead (replay: every frame, deterministic). Everything that cannot be used is counted
+// per wire::DropReason and dropped with a rate-limited log line. Memory is bounded: at most
+// max_sessions sessions, queue_capacity frames each, max_groups map groups, a bounded set of
+// ended session ids.
+//
+// Scale-out (ServerOptions::shard, common/shard.h): a server answers only the HELLOs whose
+// shard key (the group's name, or the session id) it owns; when sharded it creates sessions
+// only from HELLOs, and what belongs to other servers is ignored and counted (other_shard_*),
+// not dropped.
 //
 // Thread-safety: every public method may be called from any thread. `publish` is called from
 // the session workers (or the caller in synchronous mode) without any internal lock held, so
@@ -32,6 +41,7 @@
 #include <thread>
 #include <vector>
 
+#include "m2s/common/shard.h"
 #include "m2s/common/wire_format.h"
 #include "m2s/slam/system.h"
 
@@ -40,6 +50,11 @@ namespace m2s::server_app {
 using PublishFn = std::function<void(const std::string& channel, std::vector<uint8_t> bytes)>;
 using SystemFactory =
     std::function<Expected<std::unique_ptr<slam::System>>(const slam::Options& options)>;
+using MapGroupFactory =
+    std::function<Expected<std::shared_ptr<slam::MapGroup>>(const slam::Options& options)>;
+
+// The file extension of saved maps: DIR/session_<id>.m2smap, DIR/group-<name>.m2smap.
+inline constexpr const char* kMapFileExtension = ".m2smap";
 
 struct ServerOptions {
   // SLAM options of every session; the camera comes from the session's HELLO / first frame
@@ -56,8 +71,14 @@ struct ServerOptions {
   int queue_capacity = 1;
   // Track in the caller's thread (replay, deterministic tests) instead of a worker.
   bool synchronous = false;
-  // When not empty, each session's map is saved there when it ends.
+  // When not empty, each session's map is saved there when it ends, and each map group's map
+  // when the manager shuts down.
   std::string save_maps_dir;
+  // Map groups held at most (groups outlive their sessions); a HELLO naming a new group beyond
+  // is refused (REJECTED, counted as groups_refused and dropped as kMaxGroups).
+  int max_groups = 64;
+  // The share of the sessions this server serves (default: all).
+  ShardSpec shard;
   // A frame's sequence number may exceed its session's last one (0 before the first frame) by
   // at most this much (a stray frame with a huge seq must not freeze the session).
   int64_t max_seq_jump = 1 << 16;
@@ -84,8 +105,19 @@ struct ServerCounters {
   int64_t sessions_started = 0;
   int64_t sessions_ended = 0;
   int sessions_active = 0;
+  int64_t other_shard_hellos = 0;    // HELLOs another shard serves (ignored)
+  int64_t other_shard_messages = 0;  // sharded: frames and requests for sessions not held here
+  int64_t groups_created = 0;
+  int64_t groups_refused = 0;  // HELLOs naming a new group while max_groups are held
+  int groups = 0;              // map groups held now
   std::array<int64_t, wire::kNumDropReasons> drops{};
   int64_t total_drops() const;
+};
+
+// A map group held by the server, as reported in the stats.
+struct GroupReport {
+  std::string name;
+  slam::GroupStats stats;
 };
 
 class Session;
@@ -93,10 +125,13 @@ class Session;
 class SessionManager {
  public:
   static Expected<std::unique_ptr<slam::System>> DefaultSystemFactory(const slam::Options& options);
+  static Expected<std::shared_ptr<slam::MapGroup>> DefaultMapGroupFactory(
+      const slam::Options& options);
 
   // options must pass Check() (programmer error otherwise).
   SessionManager(ServerOptions options, PublishFn publish,
-                 SystemFactory factory = &SessionManager::DefaultSystemFactory);
+                 SystemFactory factory = &SessionManager::DefaultSystemFactory,
+                 MapGroupFactory group_factory = &SessionManager::DefaultMapGroupFactory);
   ~SessionManager();  // ends every session
   SessionManager(const SessionManager&) = delete;
   SessionManager& operator=(const SessionManager&) = delete;
@@ -112,12 +147,21 @@ class SessionManager {
   void Drop(wire::DropReason reason, const std::string& detail);
   // Ends the sessions that timed out; call periodically (the LCM server does, every 100 ms).
   void Tick();
-  // Ends every session (maps saved when asked), e.g. on SIGTERM. Idempotent.
+  // Creates map group `name` with ServerOptions::slam (its camera is the group's) and loads its
+  // map from `path` (the group becomes localisation-only). Fails on an invalid or existing
+  // name, a full group table, or a map the group refuses; call before sessions arrive.
+  Status LoadGroupMap(const std::string& name, const std::string& path);
+  // Ends every session (maps saved when asked, then the groups' maps), e.g. on SIGTERM.
+  // Idempotent.
   void Shutdown();
   // Blocks until every queued frame has been tracked (tests, replay).
   void Drain();
 
   ServerCounters Counters() const;
+  // The map groups held, by name.
+  std::vector<GroupReport> Groups() const;
+  // Counters, groups and drops (by reason name) as one JSON object (m2s_server --stats-out).
+  std::string StatsJson(bool authenticated) const;
   server_stats_t StatsMessage() const;
   // One human-readable line of the counters (non-zero drop reasons only).
   std::string StatsLine() const;
@@ -129,10 +173,28 @@ class SessionManager {
   friend class Session;
   void HandleFrame(const void* data, size_t size, uint64_t sender);
   void HandleSessionControl(const void* data, size_t size, uint64_t sender);
-  // Returns the session (created when needed); nullptr when refused (reason set).
-  std::shared_ptr<Session> FindOrCreate(int64_t session_id, uint64_t sender, const Camera& camera,
-                                        int32_t flags, bool from_hello, wire::DropReason* refused);
+  // What opens a session: a HELLO (with its flags and map group) or, unsharded, a frame.
+  struct Opening {
+    int64_t session_id = 0;
+    uint64_t sender = 0;
+    Camera camera;
+    int32_t flags = 0;
+    bool from_hello = false;
+    std::string group;
+  };
+  // Returns the session (created when needed); nullptr when refused (reason set) or, sharded,
+  // when a frame is for a session this server does not hold (*not_ours set, nothing dropped).
+  std::shared_ptr<Session> FindOrCreate(const Opening& opening, wire::DropReason* refused,
+                                        bool* not_ours);
+  // The session's System: its own, or an agent of its map group (created when new).
+  // mutex_ held; false with the reason and a message for the client when refused.
+  bool CreateSystemLocked(const Opening& opening, std::unique_ptr<slam::System>* system,
+                          wire::DropReason* refused, std::string* why);
+  void PublishRejected(int64_t session_id, const std::string& why);
+  void SaveGroupMaps();
   void EndSession(int64_t session_id, const std::string& reason);
+  // Frames and HELLOs for the id are dropped from now on (kEndedSession). mutex_ held.
+  void RememberEndedLocked(int64_t session_id);
   void Publish(const std::string& channel, std::vector<uint8_t> bytes);
   void RecordTrackingTime(double ms);
   void CountProcessed();
@@ -142,9 +204,12 @@ class SessionManager {
   const ServerOptions options_;
   const PublishFn publish_;
   const SystemFactory factory_;
+  const MapGroupFactory group_factory_;
 
   mutable std::mutex mutex_;  // guards the members below
   std::map<int64_t, std::shared_ptr<Session>> sessions_;
+  std::map<std::string, std::shared_ptr<slam::MapGroup>> groups_;
+  bool groups_saved_ = false;
   std::deque<int64_t> ended_order_;
   std::map<int64_t, bool> ended_;
   std::deque<std::shared_ptr<Session>> to_reap_;
