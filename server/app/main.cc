@@ -3,14 +3,18 @@
 //   m2s_server [--lcm-url URL] [--config FILE] [--max-sessions N] [--session-timeout S]
 //              [--save-maps DIR] [--max-features N] [--budget N] [--stats-period S]
 //              [--key-file FILE [--encrypt] [--max-message-age S]] [--stats-out FILE.json]
-//              [--shard K/N] [--max-groups N] [--load-map GROUP=FILE]... [--camera CAMERA.json]
+//              [--shard K/N] [--max-groups N] [--load-map GROUP=FILE]... [--resume-maps]
+//              [--save-period S]
 //
 // --shard K/N: this server is K of N on one bus (common/shard.h): it answers only the HELLOs
 // whose map group (or, without a group, session id) hashes to K, creates sessions only from
 // HELLOs when N > 1, and ignores (and counts) what belongs to the others.
 // --load-map GROUP=FILE (repeatable): map group GROUP starts localisation-only in the map FILE
-// (saved by --save-maps as DIR/group-GROUP.m2smap); its camera is --camera's (the default
-// camera otherwise). A file that cannot be loaded ends the server with exit code 1.
+// (saved by --save-maps as DIR/group-GROUP.m2smap) with that map's camera. A file that cannot
+// be loaded ends the server with exit code 1.
+// --save-maps DIR: session maps when sessions end; group maps every --save-period seconds and
+// at exit. --resume-maps: at start, the group maps in DIR (this shard's) are served again with
+// mapping on: a server restarted after it died continues its groups.
 //
 // --key-file: the bus's shared secret (head -c 32 /dev/urandom > key); every message in and
 // out is authenticated and replay-checked (common/bus_auth.h). Without it the bus is open.
@@ -32,7 +36,6 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
-#include "m2s/common/camera_io.h"
 #include "m2s/server_app/lcm_server.h"
 
 namespace {
@@ -130,7 +133,7 @@ int main(int argc, char** argv) {
   app.add_option("--stats-period", options.stats_period_s, "Seconds between stats (0: never)");
   app.add_flag("--deterministic", options.server.slam.deterministic,
                "Run every session's SLAM deterministically");
-  std::string shard = "0/1", camera_json;
+  std::string shard = "0/1";
   app.add_option("--shard", shard, "Serve share K of N servers on this bus (K/N)")
       ->capture_default_str();
   app.add_option("--max-groups", options.server.max_groups, "Map groups held at most")
@@ -138,7 +141,12 @@ int main(int argc, char** argv) {
   std::vector<std::string> load_maps;
   app.add_option("--load-map", load_maps,
                  "GROUP=FILE: start map group GROUP localisation-only in a saved map (repeatable)");
-  app.add_option("--camera", camera_json, "CAMERA.json: the camera of the --load-map groups");
+  app.add_flag("--resume-maps", options.resume_maps,
+               "Resume the group maps saved in --save-maps DIR (this shard's) and keep mapping "
+               "into them: a restarted server continues its groups");
+  app.add_option("--save-period", options.server.save_period_s,
+                 "Seconds between saves of the group maps to --save-maps DIR (0: only at exit)")
+      ->capture_default_str();
   std::string key_file, stats_out;
   bool encrypt = false;
   app.add_option("--stats-out", stats_out, "Write the server's counters (JSON) here at exit");
@@ -163,14 +171,6 @@ int main(int argc, char** argv) {
     }
     options.server.shard = *parsed;
   }
-  if (!camera_json.empty()) {
-    auto camera = m2s::ReadCameraJson(camera_json);
-    if (!camera) {
-      std::cerr << "m2s_server: " << camera.error() << "\n";
-      return 2;
-    }
-    options.server.slam.camera = *camera;
-  }
   if (m2s::Status parsed = ParseGroupMaps(load_maps, &options.group_maps); !parsed) {
     std::cerr << "m2s_server: " << parsed.message() << "\n";
     return 1;
@@ -190,6 +190,10 @@ int main(int argc, char** argv) {
                 << ec.message() << "\n";
       return 2;
     }
+  }
+  if (options.resume_maps && options.server.save_maps_dir.empty()) {
+    std::cerr << "m2s_server: --resume-maps needs --save-maps DIR\n";
+    return 2;
   }
   if (m2s::Status valid = options.server.Check(); !valid) {
     std::cerr << "m2s_server: " << valid.message() << "\n";

@@ -46,12 +46,23 @@ Status LcmServer::Start() {
         PublishSealed(channel, bytes);
       },
       factory_, group_factory_);
+  Status groups = Status::Ok();
   for (const auto& [group, path] : options_.group_maps) {
-    if (Status loaded = manager_->LoadGroupMap(group, path); !loaded) {
-      manager_.reset();
-      lcm_.reset();
-      return loaded;
+    if (groups = manager_->LoadGroupMap(group, path); !groups) break;
+  }
+  if (groups && options_.resume_maps) {
+    const Expected<int> resumed = manager_->ResumeGroupMaps();
+    if (resumed) {
+      M2S_LOG(kInfo) << "resumed " << *resumed << " map group(s) from "
+                     << options_.server.save_maps_dir;
+    } else {
+      groups = resumed.status();
     }
+  }
+  if (!groups) {
+    manager_.reset();
+    lcm_.reset();
+    return groups;
   }
   lcm_->subscribe(wire::kFrameChannel, &LcmServer::OnRaw, this);
   lcm_->subscribe(wire::kSessionChannel, &LcmServer::OnRaw, this);

@@ -50,6 +50,7 @@ Status ServerOptions::Check() const {
   if (max_ended_sessions <= 0) return Status::Error("max_ended_sessions must be positive");
   if (!(drop_log_period_s >= 0)) return Status::Error("drop_log_period_s must be >= 0");
   if (max_groups <= 0) return Status::Error("max_groups must be positive");
+  if (!(save_period_s >= 0.0)) return Status::Error("save_period_s must be >= 0");
   if (Status s = shard.Check(); !s) return s;
   return Status::Ok();
 }
@@ -297,8 +298,43 @@ void SessionManager::PublishRejected(int64_t session_id, const std::string& why)
 }
 
 Status SessionManager::LoadGroupMap(const std::string& name, const std::string& path) {
+  return AddGroupFromFile(name, path, /*resume=*/false);
+}
+
+Expected<int> SessionManager::ResumeGroupMaps() {
+  if (options_.save_maps_dir.empty()) return Status::Error("no save_maps_dir to resume from");
+  const std::string prefix = "group-";
+  std::vector<std::pair<std::string, std::string>> found;  // name, path
+  std::error_code ec;
+  for (const auto& entry : std::filesystem::directory_iterator(options_.save_maps_dir, ec)) {
+    const std::string file = entry.path().filename().string();
+    if (!entry.is_regular_file() || file.rfind(prefix, 0) != 0 ||
+        entry.path().extension() != kMapFileExtension) {
+      continue;
+    }
+    const std::string name = file.substr(
+        prefix.size(), file.size() - prefix.size() - std::string(kMapFileExtension).size());
+    // Another shard's group: its own server resumes it.
+    if (!wire::CheckMapGroupName(name).ok() || !options_.shard.Owns(ShardKeyOfGroup(name))) {
+      continue;
+    }
+    found.emplace_back(name, entry.path().string());
+  }
+  if (ec) return Status::Error("cannot read " + options_.save_maps_dir + ": " + ec.message());
+  std::sort(found.begin(), found.end());
+  for (const auto& [name, path] : found) {
+    if (Status resumed = AddGroupFromFile(name, path, /*resume=*/true); !resumed) return resumed;
+  }
+  return static_cast<int>(found.size());
+}
+
+Status SessionManager::AddGroupFromFile(const std::string& name, const std::string& path,
+                                        bool resume) {
   if (name.empty()) return Status::Error("map group name is empty");
   if (Status valid = wire::CheckMapGroupName(name); !valid) return valid;
+  // The group's camera is the one the map was made with.
+  auto camera = slam::ReadMapFileCamera(path);
+  if (!camera) return Status::Error("map group " + name + ": " + camera.error());
   std::lock_guard<std::mutex> lock(mutex_);
   if (groups_.count(name)) return Status::Error("map group " + name + " exists already");
   if (static_cast<int>(groups_.size()) >= options_.max_groups) {
@@ -306,15 +342,15 @@ Status SessionManager::LoadGroupMap(const std::string& name, const std::string& 
                          ") map groups");
   }
   slam::Options slam_options = options_.slam;
+  slam_options.camera = *camera;
   slam_options.max_features_per_frame = options_.max_features;
   auto group = group_factory_(slam_options);
   if (!group) return Status::Error("map group " + name + " not created: " + group.error());
-  if (Status loaded = (*group)->LoadMap(path); !loaded) {
-    return loaded.Prefixed("map group " + name + ": " + path + ": ");
-  }
+  const Status loaded = resume ? (*group)->ResumeMap(path) : (*group)->LoadMap(path);
+  if (!loaded) return loaded.Prefixed("map group " + name + ": " + path + ": ");
   groups_.emplace(name, std::move(*group));
   ++counters_.groups_created;
-  M2S_LOG(kInfo) << "map group " << name << " loaded from " << path;
+  M2S_LOG(kInfo) << "map group " << name << (resume ? " resumed from " : " loaded from ") << path;
   return Status::Ok();
 }
 
@@ -329,20 +365,30 @@ std::vector<GroupReport> SessionManager::Groups() const {
   return reports;
 }
 
-void SessionManager::SaveGroupMaps() {
+void SessionManager::SaveGroupMaps(bool final) {
   std::vector<std::pair<std::string, std::shared_ptr<slam::MapGroup>>> groups;
   {
     std::lock_guard<std::mutex> lock(mutex_);
     if (groups_saved_ || options_.save_maps_dir.empty()) return;
-    groups_saved_ = true;
+    if (final) groups_saved_ = true;
     groups.assign(groups_.begin(), groups_.end());
   }
   for (const auto& [name, group] : groups) {
-    const std::string path =
-        (std::filesystem::path(options_.save_maps_dir) / ("group-" + name + kMapFileExtension))
-            .string();
-    if (Status saved = group->SaveMap(path); saved) {
-      M2S_LOG(kInfo) << "map group " << name << ": map saved to " << path;
+    if (group->Stats().localization_only) continue;  // a loaded anchor never changes
+    const std::filesystem::path path =
+        std::filesystem::path(options_.save_maps_dir) / ("group-" + name + kMapFileExtension);
+    // Written next to the file and renamed over it: a server killed while saving leaves the
+    // previous map whole.
+    std::filesystem::path partial = path;
+    partial += ".partial";
+    Status saved = group->SaveMap(partial.string());
+    if (saved) {
+      std::error_code ec;
+      std::filesystem::rename(partial, path, ec);
+      if (ec) saved = Status::Error("cannot rename " + partial.string() + ": " + ec.message());
+    }
+    if (saved) {
+      if (final) M2S_LOG(kInfo) << "map group " << name << ": map saved to " << path.string();
     } else {
       M2S_LOG(kWarning) << "map group " << name << ": saving the map failed: " << saved.message();
     }
@@ -398,6 +444,19 @@ void SessionManager::Tick() {
     if (session->IdleSeconds(now) > options_.session_timeout_s) expired.push_back(session->id());
   }
   for (int64_t id : expired) EndSession(id, "timeout");
+  if (options_.save_period_s > 0.0 && !options_.save_maps_dir.empty()) {
+    bool due = false;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (!last_group_save_) last_group_save_ = now;
+      if (std::chrono::duration<double>(now - *last_group_save_).count() >=
+          options_.save_period_s) {
+        last_group_save_ = now;
+        due = true;
+      }
+    }
+    if (due) SaveGroupMaps(/*final=*/false);
+  }
 }
 
 void SessionManager::Shutdown() {
@@ -414,7 +473,7 @@ void SessionManager::Shutdown() {
     reap_cv_.notify_all();
   }
   if (reaper_.joinable()) reaper_.join();
-  SaveGroupMaps();  // after every agent finished
+  SaveGroupMaps(/*final=*/true);  // after every agent finished
 }
 
 void SessionManager::Drain() {

@@ -111,10 +111,15 @@ class FakeMapGroup final : public slam::MapGroup {
     return stats;
   }
   const slam::Options& options() const override { return options_; }
+  // Records the path and writes an empty map file there (with the group's camera).
   Status SaveMap(const std::string& path) const override {
-    std::lock_guard<std::mutex> lock(mutex_);
-    saved_.push_back(path);
-    return Status::Ok();
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      saved_.push_back(path);
+    }
+    auto empty = slam::MapGroup::Create(options_);
+    if (!empty) return empty.status();
+    return (*empty)->SaveMap(path);
   }
   // Refuses any path with "bad" in it.
   Status LoadMap(const std::string& path) override {

@@ -164,27 +164,82 @@ TEST(MapGroupRoutingTest, GroupsOutliveTheirSessionsAndAreBounded) {
   EXPECT_EQ(server.created[1]->joined(), 2);
 }
 
+// An empty map file made with `camera` (a real one: the server reads its camera).
+void WriteEmptyMap(const std::filesystem::path& path, const Camera& camera = Camera()) {
+  slam::Options options;
+  options.camera = camera;
+  auto group = slam::MapGroup::Create(options);
+  ASSERT_TRUE(group.ok()) << group.error();
+  ASSERT_TRUE((*group)->SaveMap(path.string()).ok());
+}
+
+std::filesystem::path FreshDir(const std::string& name) {
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / name;
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  return dir;
+}
+
 TEST(MapGroupRoutingTest, GroupMapsAreSavedAtShutdownAndLoadedByName) {
-  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "m2s_group_maps";
+  const std::filesystem::path dir = FreshDir("m2s_group_maps");
+  const std::filesystem::path anchor = dir / "anchor.m2smap";
+  WriteEmptyMap(anchor);
   ServerOptions options = GroupOptions();
   options.save_maps_dir = dir.string();
   Server server(options);
-  ASSERT_TRUE(server.manager().LoadGroupMap("anchor", "/maps/anchor.m2smap").ok());
-  const Status bad = server.manager().LoadGroupMap("other", "/maps/bad.m2smap");
+  ASSERT_TRUE(server.manager().LoadGroupMap("anchor", anchor.string()).ok());
+  const std::string bad_path = (dir / "bad.m2smap").string();
+  const Status bad = server.manager().LoadGroupMap("other", bad_path);
   ASSERT_FALSE(bad.ok());
-  EXPECT_NE(bad.message().find("/maps/bad.m2smap"), std::string::npos) << bad.message();
-  EXPECT_FALSE(server.manager().LoadGroupMap("anchor", "/maps/anchor.m2smap").ok());  // twice
-  EXPECT_FALSE(server.manager().LoadGroupMap("no spaces", "/maps/a.m2smap").ok());
+  EXPECT_NE(bad.message().find(bad_path), std::string::npos) << bad.message();
+  EXPECT_FALSE(server.manager().LoadGroupMap("anchor", anchor.string()).ok());  // twice
+  EXPECT_FALSE(server.manager().LoadGroupMap("no spaces", anchor.string()).ok());
   server.Send(wire::kSessionChannel, Hello(1, "anchor"));
   server.Send(wire::kSessionChannel, Hello(2, "room-a"));
-  ASSERT_EQ(server.created.size(), 3u);       // anchor, the refused one, room-a
+  ASSERT_EQ(server.created.size(), 2u);       // anchor, room-a
   EXPECT_EQ(server.created[0]->joined(), 1);  // the loaded group took the agent
   server.manager().Shutdown();
-  EXPECT_EQ(server.created[0]->saved(),
-            std::vector<std::string>{(dir / "group-anchor.m2smap").string()});
-  EXPECT_EQ(server.created[2]->saved(),
-            std::vector<std::string>{(dir / "group-room-a.m2smap").string()});
-  EXPECT_TRUE(server.created[1]->saved().empty());
+  // The loaded anchor is localisation-only: it never changes and is not saved again. room-a
+  // is written aside and renamed into place.
+  EXPECT_TRUE(server.created[0]->saved().empty());
+  EXPECT_EQ(server.created[1]->saved(),
+            std::vector<std::string>{(dir / "group-room-a.m2smap.partial").string()});
+  EXPECT_TRUE(std::filesystem::exists(dir / "group-room-a.m2smap"));
+  EXPECT_FALSE(std::filesystem::exists(dir / "group-room-a.m2smap.partial"));
+  std::filesystem::remove_all(dir);
+}
+
+TEST(MapGroupRoutingTest, ARestartedServerResumesItsShardsGroupMapsWithTheirCameras) {
+  const std::filesystem::path dir = FreshDir("m2s_group_resume");
+  const Camera wide = Camera::FromHorizontalFov(800, 600, 100.0);
+  const std::vector<std::string> names = {"room-a", "room-b", "room-c", "room-d"};
+  for (const std::string& name : names) WriteEmptyMap(dir / ("group-" + name + ".m2smap"), wide);
+  WriteEmptyMap(dir / "session_7.m2smap");        // a session's map: not a group
+  WriteEmptyMap(dir / "group-no spaces.m2smap");  // not a valid group name
+  ServerOptions options = GroupOptions();
+  options.save_maps_dir = dir.string();
+  options.shard = {1, 2};
+  Server server(options);
+  const Expected<int> resumed = server.manager().ResumeGroupMaps();
+  ASSERT_TRUE(resumed.ok()) << resumed.error();
+  int owned = 0;
+  for (const std::string& name : names) owned += options.shard.Owns(ShardKeyOfGroup(name));
+  EXPECT_EQ(*resumed, owned);
+  ASSERT_EQ(server.created.size(), static_cast<size_t>(owned));
+  for (const auto& group : server.created) {
+    EXPECT_NE(group->resumed(), "");
+    EXPECT_EQ(group->options().camera.width, 800);  // the map's camera
+  }
+  // A HELLO of a resumed group with the map's camera joins it; with another camera, refused.
+  for (const std::string& name : names) {
+    if (!options.shard.Owns(ShardKeyOfGroup(name))) continue;
+    server.Send(wire::kSessionChannel, Hello(11, name, wide));
+    server.Send(wire::kSessionChannel, Hello(12, name));
+    EXPECT_EQ(server.created.size(), static_cast<size_t>(owned));  // no new group
+    EXPECT_EQ(server.manager().Counters().drops[static_cast<int>(DropReason::kGroupCamera)], 1);
+    break;
+  }
+  std::filesystem::remove_all(dir);
 }
 
 // Two servers, shards 0/2 and 1/2, see the same bus: HELLOs then frames of 40 sessions, half

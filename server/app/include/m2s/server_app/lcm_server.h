@@ -44,9 +44,12 @@ struct LcmServerOptions {
   // Shared secret of the bus (none: open bus), payload encryption, replay checks.
   wire::BusSecurityOptions bus;
   ServerOptions server;
-  // Map groups created at Start() from saved maps: group name -> map file
-  // (SessionManager::LoadGroupMap; the groups' camera is server.slam.camera).
+  // Map groups created at Start() from saved maps, localisation-only: group name -> map file
+  // (SessionManager::LoadGroupMap; each group's camera is its map's).
   std::map<std::string, std::string> group_maps;
+  // Start() also resumes the group maps saved in server.save_maps_dir (this shard's), mapping
+  // on (SessionManager::ResumeGroupMaps): a restarted server continues its groups.
+  bool resume_maps = false;
 };
 
 class LcmServer {

@@ -37,6 +37,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -72,8 +73,10 @@ struct ServerOptions {
   // Track in the caller's thread (replay, deterministic tests) instead of a worker.
   bool synchronous = false;
   // When not empty, each session's map is saved there when it ends, and each map group's map
-  // when the manager shuts down.
+  // every save_period_s (0: never) and when the manager shuts down (ResumeGroupMaps() reads
+  // them back after a restart).
   std::string save_maps_dir;
+  double save_period_s = 10.0;
   // Map groups held at most (groups outlive their sessions); a HELLO naming a new group beyond
   // is refused (REJECTED, counted as groups_refused and dropped as kMaxGroups).
   int max_groups = 64;
@@ -151,6 +154,10 @@ class SessionManager {
   // map from `path` (the group becomes localisation-only). Fails on an invalid or existing
   // name, a full group table, or a map the group refuses; call before sessions arrive.
   Status LoadGroupMap(const std::string& name, const std::string& path);
+  // Resumes the group maps saved in save_maps_dir (DIR/group-<name>.m2smap, this shard's
+  // groups only): each group is created with its map's camera and keeps mapping into it (a
+  // restarted server). Returns how many; call before sessions arrive.
+  Expected<int> ResumeGroupMaps();
   // Ends every session (maps saved when asked, then the groups' maps), e.g. on SIGTERM.
   // Idempotent.
   void Shutdown();
@@ -191,7 +198,10 @@ class SessionManager {
   bool CreateSystemLocked(const Opening& opening, std::unique_ptr<slam::System>* system,
                           wire::DropReason* refused, std::string* why);
   void PublishRejected(int64_t session_id, const std::string& why);
-  void SaveGroupMaps();
+  // Saves every group's map that can change to save_maps_dir (atomically: written aside, then
+  // renamed); `final` (at shutdown): once.
+  void SaveGroupMaps(bool final);
+  Status AddGroupFromFile(const std::string& name, const std::string& path, bool resume);
   void EndSession(int64_t session_id, const std::string& reason);
   // Frames and HELLOs for the id are dropped from now on (kEndedSession). mutex_ held.
   void RememberEndedLocked(int64_t session_id);
@@ -210,6 +220,7 @@ class SessionManager {
   std::map<int64_t, std::shared_ptr<Session>> sessions_;
   std::map<std::string, std::shared_ptr<slam::MapGroup>> groups_;
   bool groups_saved_ = false;
+  std::optional<std::chrono::steady_clock::time_point> last_group_save_;
   std::deque<int64_t> ended_order_;
   std::map<int64_t, bool> ended_;
   std::deque<std::shared_ptr<Session>> to_reap_;
