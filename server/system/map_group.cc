@@ -341,10 +341,9 @@ void GroupAgent::SwitchToGroupMapIfMerged() {
     if (!switch_pending_) return;
     switch_pending_ = false;
   }
-  {
-    std::lock_guard<std::mutex> mapping(group_->mapping_mutex());
-    if (own_map_id_ < 0) own_map_.Clear();
-  }
+  // The merged own map stays as it is (the mapping thread no longer touches it; the next own
+  // map clears it): waiting here for the mapping mutex would stall tracking for the global BA
+  // that follows the merge.
   own_tracker_.Reset();
   initializer_.Reset();
   // The merged map holds this agent's own keyframes and points: relocalisation by id succeeds
