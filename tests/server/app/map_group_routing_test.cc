@@ -209,6 +209,31 @@ TEST(MapGroupRoutingTest, GroupMapsAreSavedAtShutdownAndLoadedByName) {
   std::filesystem::remove_all(dir);
 }
 
+TEST(MapGroupRoutingTest, GroupMapsAreSavedEverySavePeriodSoAKilledServerLosesAtMostThat) {
+  const std::filesystem::path dir = FreshDir("m2s_group_periodic");
+  ManualClock clock;
+  ServerOptions options = GroupOptions();
+  options.save_maps_dir = dir.string();
+  options.save_period_s = 5.0;
+  options.session_timeout_s = 1000.0;
+  options.clock = [&clock] { return clock.now; };
+  Server server(options);
+  server.Send(wire::kSessionChannel, Hello(1, "room-a"));
+  ASSERT_EQ(server.created.size(), 1u);
+  server.manager().Tick();  // the period starts
+  clock.Advance(4.9);
+  server.manager().Tick();
+  EXPECT_TRUE(server.created[0]->saved().empty());
+  clock.Advance(0.2);
+  server.manager().Tick();
+  EXPECT_EQ(server.created[0]->saved().size(), 1u);
+  EXPECT_TRUE(std::filesystem::exists(dir / "group-room-a.m2smap"));
+  clock.Advance(5.0);
+  server.manager().Tick();
+  EXPECT_EQ(server.created[0]->saved().size(), 2u);
+  std::filesystem::remove_all(dir);
+}
+
 TEST(MapGroupRoutingTest, ARestartedServerResumesItsShardsGroupMapsWithTheirCameras) {
   const std::filesystem::path dir = FreshDir("m2s_group_resume");
   const Camera wide = Camera::FromHorizontalFov(800, 600, 100.0);

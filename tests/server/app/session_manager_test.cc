@@ -107,14 +107,6 @@ TEST_F(SessionManagerTest, EveryBadMessageIsCountedUnderItsReason) {
 }
 
 // A manual clock for session activity and timeouts.
-struct ManualClock {
-  std::chrono::steady_clock::time_point now{};
-  void Advance(double seconds) {
-    now += std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-        std::chrono::duration<double>(seconds));
-  }
-};
-
 TEST_F(SessionManagerTest, ByeMaxSessionsAndTimeout) {
   ServerOptions options = SyncOptions();
   options.session_timeout_s = 0.2;

@@ -2,6 +2,7 @@
 // frames and session messages a client sends.
 #pragma once
 
+#include <chrono>
 #include <mutex>
 #include <string>
 #include <vector>
@@ -55,5 +56,14 @@ inline std::vector<uint8_t> Control(int8_t type, int64_t session) {
   m.camera = wire::ToMessage(Camera());
   return wire::Encode(m);
 }
+
+// The session manager's clock in tests (ServerOptions::clock): moves only when told.
+struct ManualClock {
+  std::chrono::steady_clock::time_point now{};
+  void Advance(double seconds) {
+    now += std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+        std::chrono::duration<double>(seconds));
+  }
+};
 
 }  // namespace m2s::server_app
