@@ -2,11 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
-#include <filesystem>
 #include <random>
-#include <sstream>
-
-#include <nlohmann/json.hpp>
 
 #include "m2s/common/check.h"
 #include "m2s/common/logging.h"
@@ -297,104 +293,6 @@ void SessionManager::PublishRejected(int64_t session_id, const std::string& why)
   Publish(wire::kSessionChannel, wire::Encode(reply));
 }
 
-Status SessionManager::LoadGroupMap(const std::string& name, const std::string& path) {
-  return AddGroupFromFile(name, path, /*resume=*/false);
-}
-
-Expected<int> SessionManager::ResumeGroupMaps() {
-  if (options_.save_maps_dir.empty()) return Status::Error("no save_maps_dir to resume from");
-  const std::string prefix = "group-";
-  std::vector<std::pair<std::string, std::string>> found;  // name, path
-  std::error_code ec;
-  for (const auto& entry : std::filesystem::directory_iterator(options_.save_maps_dir, ec)) {
-    const std::string file = entry.path().filename().string();
-    if (!entry.is_regular_file() || file.rfind(prefix, 0) != 0 ||
-        entry.path().extension() != kMapFileExtension) {
-      continue;
-    }
-    const std::string name = file.substr(
-        prefix.size(), file.size() - prefix.size() - std::string(kMapFileExtension).size());
-    // Another shard's group: its own server resumes it.
-    if (!wire::CheckMapGroupName(name).ok() || !options_.shard.Owns(ShardKeyOfGroup(name))) {
-      continue;
-    }
-    found.emplace_back(name, entry.path().string());
-  }
-  if (ec) return Status::Error("cannot read " + options_.save_maps_dir + ": " + ec.message());
-  std::sort(found.begin(), found.end());
-  for (const auto& [name, path] : found) {
-    if (Status resumed = AddGroupFromFile(name, path, /*resume=*/true); !resumed) return resumed;
-  }
-  return static_cast<int>(found.size());
-}
-
-Status SessionManager::AddGroupFromFile(const std::string& name, const std::string& path,
-                                        bool resume) {
-  if (name.empty()) return Status::Error("map group name is empty");
-  if (Status valid = wire::CheckMapGroupName(name); !valid) return valid;
-  // The group's camera is the one the map was made with.
-  auto camera = slam::ReadMapFileCamera(path);
-  if (!camera) return Status::Error("map group " + name + ": " + camera.error());
-  std::lock_guard<std::mutex> lock(mutex_);
-  if (groups_.count(name)) return Status::Error("map group " + name + " exists already");
-  if (static_cast<int>(groups_.size()) >= options_.max_groups) {
-    return Status::Error("more than max_groups (" + std::to_string(options_.max_groups) +
-                         ") map groups");
-  }
-  slam::Options slam_options = options_.slam;
-  slam_options.camera = *camera;
-  slam_options.max_features_per_frame = options_.max_features;
-  auto group = group_factory_(slam_options);
-  if (!group) return Status::Error("map group " + name + " not created: " + group.error());
-  const Status loaded = resume ? (*group)->ResumeMap(path) : (*group)->LoadMap(path);
-  if (!loaded) return loaded.Prefixed("map group " + name + ": " + path + ": ");
-  groups_.emplace(name, std::move(*group));
-  ++counters_.groups_created;
-  M2S_LOG(kInfo) << "map group " << name << (resume ? " resumed from " : " loaded from ") << path;
-  return Status::Ok();
-}
-
-std::vector<GroupReport> SessionManager::Groups() const {
-  std::vector<std::pair<std::string, std::shared_ptr<slam::MapGroup>>> groups;
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    groups.assign(groups_.begin(), groups_.end());
-  }
-  std::vector<GroupReport> reports;
-  for (const auto& [name, group] : groups) reports.push_back({name, group->Stats()});
-  return reports;
-}
-
-void SessionManager::SaveGroupMaps(bool final) {
-  std::vector<std::pair<std::string, std::shared_ptr<slam::MapGroup>>> groups;
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    if (groups_saved_ || options_.save_maps_dir.empty()) return;
-    if (final) groups_saved_ = true;
-    groups.assign(groups_.begin(), groups_.end());
-  }
-  for (const auto& [name, group] : groups) {
-    if (group->Stats().localization_only) continue;  // a loaded anchor never changes
-    const std::filesystem::path path =
-        std::filesystem::path(options_.save_maps_dir) / ("group-" + name + kMapFileExtension);
-    // Written next to the file and renamed over it: a server killed while saving leaves the
-    // previous map whole.
-    std::filesystem::path partial = path;
-    partial += ".partial";
-    Status saved = group->SaveMap(partial.string());
-    if (saved) {
-      std::error_code ec;
-      std::filesystem::rename(partial, path, ec);
-      if (ec) saved = Status::Error("cannot rename " + partial.string() + ": " + ec.message());
-    }
-    if (saved) {
-      if (final) M2S_LOG(kInfo) << "map group " << name << ": map saved to " << path.string();
-    } else {
-      M2S_LOG(kWarning) << "map group " << name << ": saving the map failed: " << saved.message();
-    }
-  }
-}
-
 void SessionManager::RememberEndedLocked(int64_t session_id) {
   ended_[session_id] = true;
   ended_order_.push_back(session_id);
@@ -550,83 +448,6 @@ ServerCounters SessionManager::Counters() const {
   counters.sessions_active = static_cast<int>(sessions_.size());
   counters.groups = static_cast<int>(groups_.size());
   return counters;
-}
-
-std::string SessionManager::StatsJson(bool authenticated) const {
-  const ServerCounters c = Counters();
-  nlohmann::json drops = nlohmann::json::object();
-  for (int r = 0; r < wire::kNumDropReasons; ++r) {
-    drops[wire::ToString(static_cast<wire::DropReason>(r))] = c.drops[r];
-  }
-  nlohmann::json groups = nlohmann::json::array();
-  for (const GroupReport& g : Groups()) {
-    groups.push_back({{"name", g.name},
-                      {"agents_joined", g.stats.agents_joined},
-                      {"agents_active", g.stats.agents_active},
-                      {"merges", g.stats.merges},
-                      {"merge_ms", g.stats.merge_ms},
-                      {"keyframes", g.stats.keyframes},
-                      {"map_points", g.stats.map_points},
-                      {"localization_only", g.stats.localization_only}});
-  }
-  const nlohmann::json j = {{"server_instance", server_instance()},
-                            {"shard", options_.shard.ToString()},
-                            {"shard_index", options_.shard.index},
-                            {"shard_count", options_.shard.count},
-                            {"messages_in", c.messages_in},
-                            {"frames_in", c.frames_in},
-                            {"frames_processed", c.frames_processed},
-                            {"frames_skipped", c.frames_skipped},
-                            {"session_messages", c.session_messages},
-                            {"sessions_started", c.sessions_started},
-                            {"sessions_ended", c.sessions_ended},
-                            {"sessions_active", c.sessions_active},
-                            {"other_shard_hellos", c.other_shard_hellos},
-                            {"other_shard_messages", c.other_shard_messages},
-                            {"groups_created", c.groups_created},
-                            {"groups_refused", c.groups_refused},
-                            {"groups", groups},
-                            {"authenticated", authenticated},
-                            {"drops_total", c.total_drops()},
-                            {"drops", drops}};
-  return j.dump(2) + "\n";
-}
-
-server_stats_t SessionManager::StatsMessage() const {
-  const ServerCounters c = Counters();
-  std::vector<float> times;
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    times = tracking_ms_ring_;
-  }
-  server_stats_t m;
-  m.version = server_stats_t::VERSION;
-  m.server_instance = server_instance();
-  m.wall_us = wire::WallClockMicros();
-  m.sessions_active = c.sessions_active;
-  m.frames_in = c.frames_in;
-  m.frames_processed = c.frames_processed;
-  m.frames_skipped = c.frames_skipped;
-  for (int r = 0; r < wire::kNumDropReasons; ++r) {
-    m.drop_reasons.push_back(wire::ToString(static_cast<wire::DropReason>(r)));
-    m.drop_counts.push_back(c.drops[r]);
-  }
-  m.num_drop_reasons = static_cast<int32_t>(m.drop_reasons.size());
-  m.tracking_ms_p50 = Percentile(times, 0.5, PercentileMethod::kRoundedRank);
-  m.tracking_ms_p95 = Percentile(times, 0.95, PercentileMethod::kRoundedRank);
-  return m;
-}
-
-std::string SessionManager::StatsLine() const {
-  const server_stats_t m = StatsMessage();
-  std::ostringstream line;
-  line << "sessions " << m.sessions_active << ", frames in " << m.frames_in << ", processed "
-       << m.frames_processed << ", skipped " << m.frames_skipped << ", tracking p50 "
-       << m.tracking_ms_p50 << " ms p95 " << m.tracking_ms_p95 << " ms";
-  for (int r = 0; r < m.num_drop_reasons; ++r) {
-    if (m.drop_counts[r] > 0) line << ", " << m.drop_reasons[r] << " " << m.drop_counts[r];
-  }
-  return line.str();
 }
 
 }  // namespace m2s::server_app
