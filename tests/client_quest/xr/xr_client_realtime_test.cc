@@ -21,7 +21,10 @@ namespace m2s::xr_test {
 namespace {
 
 constexpr int kFrames = 300;
-constexpr int kCaptureFrame = 290;
+// Left-eye captures checked for the overlay: several, because when the asynchronous SLAM has
+// well-constrained points to show depends on the machine's load (a loaded machine may still
+// be initialising or re-mapping at any one of them).
+constexpr int kCaptureFrames[] = {230, 250, 270, 290};
 // Metres, Sim3-aligned, over ~4 s of walking. Measured 2.6e-5 to 2.8e-4 m on-device and
 // 2.8e-5 to 7.7e-5 m over LCM (2 cores at load 9); which frames the SLAM takes depends on the
 // machine, so the bound is loose: 18x the worst seen.
@@ -39,11 +42,52 @@ std::string ClientCommand(const fs::path& dir, const fs::path& trajectory,
 // point colour; sRGB-encoded by the swapchain).
 bool IsPointColour(const cv::Vec3b& bgr) { return bgr[2] > 150 && bgr[1] < 140 && bgr[0] < 140; }
 
+// Red (map point) pixels of a captured left eye, and those within 4 px of a true scene
+// vertex projected with the capture's pose and field of view; red = -1 when the capture is
+// missing.
+struct OverlayCount {
+  int red = -1;
+  int red_near_vertex = 0;
+};
+
+OverlayCount CountOverlayPixels(const Scene& scene, const fs::path& png, const fs::path& json) {
+  OverlayCount count;
+  const cv::Mat image = cv::imread(png.string());
+  if (image.empty() || !fs::exists(json)) return count;
+  const nlohmann::json meta = ReadJson(json);
+  const auto& pos = meta["pose_in_layer_space"]["position"];
+  const auto& rot = meta["pose_in_layer_space"]["orientation_xyzw"];
+  const Pose3 world_from_eye = xr::PoseFromXr(Eigen::Vector4d(rot[0], rot[1], rot[2], rot[3]),
+                                              Eigen::Vector3d(pos[0], pos[1], pos[2]));
+  const xr::FieldOfView fov{meta["fov_rad"]["left"], meta["fov_rad"]["right"],
+                            meta["fov_rad"]["up"], meta["fov_rad"]["down"]};
+  const Camera eye = xr::CameraFromXrFov(fov, image.cols, image.rows, 0.05, 100.0);
+  const Pose3 eye_from_world = xr::WorldFromCameraFromXrView(world_from_eye).Inverse();
+  cv::Mat near_vertex(image.rows, image.cols, CV_8U, cv::Scalar(0));
+  for (const Eigen::Vector3f& v : scene.positions) {
+    const Eigen::Vector3d p = eye_from_world * v.cast<double>();
+    if (p.z() < 0.1) continue;
+    const Eigen::Vector2d uv = eye.Project(p);
+    if (!eye.InImage(uv.x(), uv.y())) continue;
+    cv::circle(near_vertex, cv::Point(static_cast<int>(uv.x()), static_cast<int>(uv.y())), 4, 255,
+               -1);
+  }
+  count.red = 0;
+  for (int y = 0; y < image.rows; ++y) {
+    for (int x = 0; x < image.cols; ++x) {
+      if (!IsPointColour(image.at<cv::Vec3b>(y, x))) continue;
+      ++count.red;
+      count.red_near_vertex += near_vertex.at<uint8_t>(y, x) != 0;
+    }
+  }
+  return count;
+}
+
 TEST(XrClientRealtime, OnDeviceTracksThePlayedHeadAndDrawsTheOverlay) {
   const fs::path dir = TestDir();
   const Trajectory played = WritePlayedTrajectory(dir / "head.tum", kFrames / kRateHz + 0.5);
   const int rc =
-      RunBounded(ClientCommand(dir, dir / "head.tum", "", std::to_string(kCaptureFrame),
+      RunBounded(ClientCommand(dir, dir / "head.tum", "", "230,250,270,290",
                                "--on-device --projector cpu --budget 2000 --no-mesh --frames " +
                                    std::to_string(kFrames)),
                  240, dir / "log.txt");
@@ -83,41 +127,20 @@ TEST(XrClientRealtime, OnDeviceTracksThePlayedHeadAndDrawsTheOverlay) {
   EXPECT_GT(metrics["render_thread_ms"]["projection"]["n"].get<int>(), kFrames - 10);
 
   // The overlay: map points are drawn (red) where true scene vertices project in the
-  // submitted left eye.
-  const cv::Mat image = cv::imread(
-      (dir / "capture" / ("left_000" + std::to_string(kCaptureFrame) + ".png")).string());
-  ASSERT_FALSE(image.empty());
-  const nlohmann::json meta =
-      ReadJson(dir / "capture" / ("left_000" + std::to_string(kCaptureFrame) + ".json"));
-  const auto& pos = meta["pose_in_layer_space"]["position"];
-  const auto& rot = meta["pose_in_layer_space"]["orientation_xyzw"];
-  const Pose3 world_from_eye = xr::PoseFromXr(Eigen::Vector4d(rot[0], rot[1], rot[2], rot[3]),
-                                              Eigen::Vector3d(pos[0], pos[1], pos[2]));
-  const xr::FieldOfView fov{meta["fov_rad"]["left"], meta["fov_rad"]["right"],
-                            meta["fov_rad"]["up"], meta["fov_rad"]["down"]};
-  const Camera eye = xr::CameraFromXrFov(fov, image.cols, image.rows, 0.05, 100.0);
-  const Pose3 eye_from_world = xr::WorldFromCameraFromXrView(world_from_eye).Inverse();
-  // Map points the app held at the end, in the world frame by the run's Sim3.
+  // submitted left eye, in every capture that shows points, and at least one capture does.
   const Scene scene = MakeDefaultScene();
-  cv::Mat near_vertex(image.rows, image.cols, CV_8U, cv::Scalar(0));
-  for (const Eigen::Vector3f& v : scene.positions) {
-    const Eigen::Vector3d p = eye_from_world * v.cast<double>();
-    if (p.z() < 0.1) continue;
-    const Eigen::Vector2d uv = eye.Project(p);
-    if (!eye.InImage(uv.x(), uv.y())) continue;
-    cv::circle(near_vertex, cv::Point(static_cast<int>(uv.x()), static_cast<int>(uv.y())), 4, 255,
-               -1);
+  int captures_with_points = 0;
+  for (const int frame : kCaptureFrames) {
+    const std::string name = "left_000" + std::to_string(frame);
+    const OverlayCount count = CountOverlayPixels(scene, dir / "capture" / (name + ".png"),
+                                                  dir / "capture" / (name + ".json"));
+    ASSERT_GE(count.red, 0) << "capture " << frame << " missing";
+    if (count.red <= 50) continue;
+    ++captures_with_points;
+    EXPECT_GT(count.red_near_vertex, 0.9 * count.red)
+        << "map points drawn away from the scene's vertices in frame " << frame;
   }
-  int red = 0, red_near_vertex = 0;
-  for (int y = 0; y < image.rows; ++y) {
-    for (int x = 0; x < image.cols; ++x) {
-      if (!IsPointColour(image.at<cv::Vec3b>(y, x))) continue;
-      ++red;
-      red_near_vertex += near_vertex.at<uint8_t>(y, x) != 0;
-    }
-  }
-  EXPECT_GT(red, 50) << "no map points drawn in the left eye";
-  EXPECT_GT(red_near_vertex, 0.9 * red) << "map points drawn away from the scene's vertices";
+  EXPECT_GE(captures_with_points, 1) << "no map points drawn in the left eye";
 }
 
 TEST(XrClientRealtime, OverLcmToASeparateServer) {
