@@ -2,6 +2,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <string>
 #include <system_error>
 #include <vector>
@@ -12,6 +13,7 @@
 
 #include "m2s/common/scene.h"
 #include "scene_builder.h"
+#include "scene_cache.h"
 
 namespace m2s {
 namespace {
@@ -124,6 +126,8 @@ Status Validate(const aiScene& ai) {
   return Status::Ok();
 }
 
+Expected<Scene> ParseScene(const std::string& path, const SceneLoadOptions& options);
+
 std::string Lower(std::string s) {
   for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   return s;
@@ -153,8 +157,37 @@ Expected<Scene> LoadScene(const std::string& path, const SceneLoadOptions& optio
   if (!std::ifstream(path, std::ios::binary).good()) {
     return Expected<Scene>::Error(where + "cannot be opened for reading");
   }
-  if (std::filesystem::file_size(fs_path, ec) == 0)
-    return Expected<Scene>::Error(where + "empty file");
+  const uint64_t file_size = std::filesystem::file_size(fs_path, ec);
+  if (file_size == 0) return Expected<Scene>::Error(where + "empty file");
+
+  // The cache: the key hashes the file's bytes, so an edited file never reads a stale entry.
+  std::string cache_dir;
+  std::optional<uint64_t> cache_key;
+  uint64_t source_size = 0;
+  if (options.use_cache && file_size >= options.cache_min_bytes) {
+    cache_dir = internal::SceneCacheDir(options);
+    if (!cache_dir.empty()) cache_key = internal::SceneCacheKey(path, options, &source_size);
+    if (cache_key) {
+      if (std::optional<Scene> cached =
+              internal::ReadSceneCache(cache_dir, *cache_key, source_size, options)) {
+        cached->name = fs_path.stem().string();
+        return std::move(*cached);
+      }
+    }
+  }
+  Expected<Scene> parsed = ParseScene(path, options);
+  if (parsed && cache_key) {
+    internal::WriteSceneCache(cache_dir, *cache_key, source_size, options, *parsed);
+  }
+  return parsed;
+}
+
+namespace {
+
+// LoadScene without the cache: assimp, then the id assignment of scene.h.
+Expected<Scene> ParseScene(const std::string& path, const SceneLoadOptions& options) {
+  const std::string where = "scene '" + path + "': ";
+  const std::filesystem::path fs_path(path);
 
   Assimp::Importer importer;
   const std::string extension = Lower(fs_path.extension().string());
@@ -190,6 +223,8 @@ Expected<Scene> LoadScene(const std::string& path, const SceneLoadOptions& optio
   }
   return std::move(loader.builder).Build(fs_path.stem().string());
 }
+
+}  // namespace
 
 Expected<Scene> LoadSceneOrDefault(const std::string& path) {
   if (path.empty()) return MakeDefaultScene();

@@ -32,11 +32,22 @@ struct SceneLoadOptions {
   Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();
   Eigen::Vector3d translation = Eigen::Vector3d::Zero();
 
+  // Binary cache of loaded scenes: a file of at least cache_min_bytes is parsed once; later
+  // loads of the same content with the same transform read the cached positions, ids and
+  // triangles (exactly what parsing gives: the cache is an accelerator, never another
+  // numbering), bound by the disk. Entries are keyed by a 64-bit hash of the file's bytes and
+  // this transform; a damaged or stale entry is ignored and rewritten. The folder: cache_dir,
+  // else $M2S_CACHE_DIR, else $XDG_CACHE_HOME/mesh2slam, else ~/.cache/mesh2slam.
+  bool use_cache = true;
+  std::string cache_dir;
+  uint64_t cache_min_bytes = uint64_t{16} << 20;  // smaller files parse in well under a second
+
   Status Check() const;
 };
 
-// Loads any format assimp reads (OBJ, PLY, glTF, FBX, 3DS, IFC...). Only aiProcess_Triangulate
-// is applied (no post-process step that reorders or joins vertices).
+// Loads any format assimp reads (through the cache above when the file is large enough) (OBJ, PLY,
+// glTF, FBX, 3DS, IFC...). Only aiProcess_Triangulate is applied (no post-process step that
+// reorders or joins vertices).
 //
 // Id order, stable across runs, machines and formats that keep face order (OBJ and PLY of the
 // same mesh give the same ids):
