@@ -23,8 +23,12 @@ namespace {
 constexpr size_t kBlockSize = 1024;
 // Below this many vertices per worker, waking another thread costs more than it saves.
 constexpr size_t kMinVerticesPerWorker = 32768;
-// Chunk boundaries are multiples of this, so every chunk starts on a cache line.
-constexpr size_t kChunkAlignment = 64;
+// Culling groups: vertices (a multiple of kBlockSize, so groups start on cache lines) and
+// triangles per group.
+constexpr size_t kVertexGroupSize = 4 * kBlockSize;
+constexpr size_t kTriangleGroupSize = 4096;
+// The frustum test's margin around the image (pixels): far above the kernel's float rounding.
+constexpr double kCullMarginPx = 2.0;
 constexpr int kMaxThreads = 256;
 
 }  // namespace
@@ -62,16 +66,27 @@ struct CpuProjector::Impl {
   AlignedVector<uint8_t> all_visible;
   DepthBuffer depth_buffer;
 
+  // Culling groups (cpu_projector_internal.h) and, per triangle group, the vertex groups its
+  // corners belong to (tri_refs[tri_ref_begin[t] .. tri_ref_begin[t + 1]]).
+  std::vector<internal::CullGroup> vertex_groups, triangle_groups;
+  std::vector<uint32_t> tri_ref_begin, tri_refs;
+
   // Per-frame state read by the workers.
   FrameConstants constants{};
   Camera camera;
   Eigen::Matrix3d camera_from_world = Eigen::Matrix3d::Identity();
   Eigen::Vector3d camera_centre = Eigen::Vector3d::Zero();
-  size_t chunk_size = 0;
   int active_workers = 1;
+  // Vertex groups that may be seen, and (with occlusion) those to transform: the seen ones
+  // and every group a seen triangle uses; worker w takes list[split[w] .. split[w + 1]).
+  std::vector<uint32_t> visible_groups, transform_groups, visible_triangle_groups;
+  std::vector<size_t> visible_split, transform_split;
+  std::vector<uint8_t> group_needed;
+  size_t frame_vertices = 0;        // vertices in the visible groups
+  size_t transformed_vertices = 0;  // with occlusion: in the groups transformed
 
-  size_t ChunkBegin(int worker) const { return std::min(num_vertices, worker * chunk_size); }
-  size_t ChunkEnd(int worker) const { return std::min(num_vertices, (worker + 1) * chunk_size); }
+  // Fills the per-frame lists; returns the number of workers to wake.
+  void Cull(const Pose3& world_from_camera, int pool_size);
   ProjectedVertex* ReserveOut(WorkerScratch& s, size_t n) {
     if (s.out.size() < n + 1) s.out.resize(n + 1);
     return s.out.data();
@@ -80,30 +95,77 @@ struct CpuProjector::Impl {
   void ProjectChunk(int worker);
   void TransformChunk(int worker);
   void RasterizeBand(int band, int num_bands);
+  // One band of depth-buffer rows and the constants of its triangle loop.
+  struct Band {
+    int row_begin = 0, row_end = 0;
+    double scale_x = 1, scale_y = 1;  // image pixels -> buffer pixels
+    float near = 0, far = 0;
+    float top = 0, bottom = 0, right = 0;  // float rejection limits, a pixel of margin
+  };
+  void RasterizeTriangleAt(size_t t, const Band& band);
   void TestChunk(int worker);
+  // Appends the vertices of [begin, end) that pass the depth test to out[count...]; returns
+  // the new count.
+  size_t TestGroup(size_t begin, size_t end, ProjectedVertex* out, size_t count) const;
 };
+
+void CpuProjector::Impl::Cull(const Pose3& world_from_camera, int pool_size) {
+  const internal::FrustumCuller culler(world_from_camera, camera, kCullMarginPx);
+  visible_groups.clear();
+  frame_vertices = 0;
+  for (uint32_t g = 0; g < vertex_groups.size(); ++g) {
+    if (!culler.MayBeVisible(vertex_groups[g])) continue;
+    visible_groups.push_back(g);
+    frame_vertices += vertex_groups[g].end - vertex_groups[g].begin;
+  }
+  active_workers = static_cast<int>(std::clamp<size_t>(frame_vertices / kMinVerticesPerWorker, 1,
+                                                       static_cast<size_t>(pool_size)));
+  internal::SplitByCount(vertex_groups, visible_groups, active_workers, &visible_split);
+  if (!options.occlusion) return;
+  visible_triangle_groups.clear();
+  group_needed.assign(vertex_groups.size(), 0);
+  for (uint32_t g : visible_groups) group_needed[g] = 1;
+  for (uint32_t t = 0; t < triangle_groups.size(); ++t) {
+    if (!culler.MayBeVisible(triangle_groups[t])) continue;
+    visible_triangle_groups.push_back(t);
+    for (uint32_t k = tri_ref_begin[t]; k < tri_ref_begin[t + 1]; ++k)
+      group_needed[tri_refs[k]] = 1;
+  }
+  transform_groups.clear();
+  transformed_vertices = 0;
+  for (uint32_t g = 0; g < vertex_groups.size(); ++g) {
+    if (!group_needed[g]) continue;
+    transform_groups.push_back(g);
+    transformed_vertices += vertex_groups[g].end - vertex_groups[g].begin;
+  }
+  internal::SplitByCount(vertex_groups, transform_groups, active_workers, &transform_split);
+}
 
 void CpuProjector::Impl::ProjectChunk(int worker) {
   WorkerScratch& s = scratch[worker];
-  const size_t begin = ChunkBegin(worker), end = ChunkEnd(worker);
-  ProjectedVertex* out = ReserveOut(s, end - begin);
   size_t count = 0;
-  for (size_t block = begin; block < end; block += kBlockSize) {
-    const size_t n = std::min(kBlockSize, end - block);
-    internal::TransformVertices(constants, x.data() + block, y.data() + block, z.data() + block, n,
-                                s.u.data(), s.v.data(), s.depth.data(), s.visible.data());
-    count += internal::CompactVisible(s.u.data(), s.v.data(), s.depth.data(), s.visible.data(), n,
-                                      static_cast<VertexId>(block), out + count);
+  for (size_t k = visible_split[worker]; k < visible_split[worker + 1]; ++k) {
+    const internal::CullGroup& group = vertex_groups[visible_groups[k]];
+    ProjectedVertex* out = ReserveOut(s, count + (group.end - group.begin));
+    for (size_t block = group.begin; block < group.end; block += kBlockSize) {
+      const size_t n = std::min<size_t>(kBlockSize, group.end - block);
+      internal::TransformVertices(constants, x.data() + block, y.data() + block, z.data() + block,
+                                  n, s.u.data(), s.v.data(), s.depth.data(), s.visible.data());
+      count += internal::CompactVisible(s.u.data(), s.v.data(), s.depth.data(), s.visible.data(), n,
+                                        static_cast<VertexId>(block), out + count);
+    }
   }
   s.count = count;
 }
 
 void CpuProjector::Impl::TransformChunk(int worker) {
-  const size_t begin = ChunkBegin(worker), end = ChunkEnd(worker);
-  if (end <= begin) return;
-  internal::TransformVertices(constants, x.data() + begin, y.data() + begin, z.data() + begin,
-                              end - begin, all_u.data() + begin, all_v.data() + begin,
-                              all_depth.data() + begin, all_visible.data() + begin);
+  for (size_t k = transform_split[worker]; k < transform_split[worker + 1]; ++k) {
+    const internal::CullGroup& group = vertex_groups[transform_groups[k]];
+    const size_t begin = group.begin, n = group.end - group.begin;
+    internal::TransformVertices(constants, x.data() + begin, y.data() + begin, z.data() + begin, n,
+                                all_u.data() + begin, all_v.data() + begin,
+                                all_depth.data() + begin, all_visible.data() + begin);
+  }
 }
 
 void CpuProjector::Impl::RasterizeBand(int band, int num_bands) {
@@ -112,53 +174,67 @@ void CpuProjector::Impl::RasterizeBand(int band, int num_bands) {
   const int row_end = static_cast<int>(static_cast<int64_t>(height) * (band + 1) / num_bands);
   if (row_end <= row_begin) return;
   depth_buffer.Clear(row_begin, row_end);
-  const double scale_x = static_cast<double>(depth_buffer.width()) / camera.width;
-  const double scale_y = static_cast<double>(height) / camera.height;
-  const float near = constants.near, far = constants.far;
-  const float band_top = static_cast<float>(row_begin) - 1.f;
-  const float band_bottom = static_cast<float>(row_end) + 1.f;
-  const float buffer_right = static_cast<float>(depth_buffer.width()) + 1.f;
-  const size_t num_triangles = triangles.size() / 3;
-  for (size_t t = 0; t < num_triangles; ++t) {
-    const uint32_t* idx = &triangles[3 * t];
-    const float z0 = all_depth[idx[0]], z1 = all_depth[idx[1]], z2 = all_depth[idx[2]];
-    const int in_front = (z0 >= near) + (z1 >= near) + (z2 >= near);
-    if (in_front == 0 || (z0 > far && z1 > far && z2 > far)) continue;
-    if (in_front == 3) {
-      // Cheap rejection in float against the band, with a pixel of margin.
-      const float y0 = all_v[idx[0]] * static_cast<float>(scale_y);
-      const float y1 = all_v[idx[1]] * static_cast<float>(scale_y);
-      const float y2 = all_v[idx[2]] * static_cast<float>(scale_y);
-      if (std::max({y0, y1, y2}) < band_top || std::min({y0, y1, y2}) > band_bottom) continue;
-      const float x0 = all_u[idx[0]] * static_cast<float>(scale_x);
-      const float x1 = all_u[idx[1]] * static_cast<float>(scale_x);
-      const float x2 = all_u[idx[2]] * static_cast<float>(scale_x);
-      if (std::max({x0, x1, x2}) < -1.f || std::min({x0, x1, x2}) > buffer_right) continue;
-      const RasterVertex a{x0, y0, 1.0 / z0}, b{x1, y1, 1.0 / z1}, c{x2, y2, 1.0 / z2};
-      internal::RasterizeTriangle(a, b, c, row_begin, row_end, &depth_buffer);
-    } else {
-      Eigen::Vector3d p_camera[3];
-      for (int k = 0; k < 3; ++k) {
-        const Eigen::Vector3d p(x[idx[k]], y[idx[k]], z[idx[k]]);
-        p_camera[k] = camera_from_world * (p - camera_centre);
-      }
-      internal::ClipAndRasterizeTriangle(p_camera, camera, scale_x, scale_y, row_begin, row_end,
-                                         &depth_buffer);
+  Band b;
+  b.row_begin = row_begin;
+  b.row_end = row_end;
+  b.scale_x = static_cast<double>(depth_buffer.width()) / camera.width;
+  b.scale_y = static_cast<double>(height) / camera.height;
+  b.near = constants.near;
+  b.far = constants.far;
+  b.top = static_cast<float>(row_begin) - 1.f;
+  b.bottom = static_cast<float>(row_end) + 1.f;
+  b.right = static_cast<float>(depth_buffer.width()) + 1.f;
+  for (uint32_t group : visible_triangle_groups) {
+    for (size_t t = triangle_groups[group].begin; t < triangle_groups[group].end; ++t) {
+      RasterizeTriangleAt(t, b);
     }
+  }
+}
+
+void CpuProjector::Impl::RasterizeTriangleAt(size_t t, const Band& band) {
+  const uint32_t* idx = &triangles[3 * t];
+  const float z0 = all_depth[idx[0]], z1 = all_depth[idx[1]], z2 = all_depth[idx[2]];
+  const int in_front = (z0 >= band.near) + (z1 >= band.near) + (z2 >= band.near);
+  if (in_front == 0 || (z0 > band.far && z1 > band.far && z2 > band.far)) return;
+  if (in_front == 3) {
+    // Cheap rejection in float against the band, with a pixel of margin.
+    const float sx = static_cast<float>(band.scale_x), sy = static_cast<float>(band.scale_y);
+    const float y0 = all_v[idx[0]] * sy, y1 = all_v[idx[1]] * sy, y2 = all_v[idx[2]] * sy;
+    if (std::max({y0, y1, y2}) < band.top || std::min({y0, y1, y2}) > band.bottom) return;
+    const float x0 = all_u[idx[0]] * sx, x1 = all_u[idx[1]] * sx, x2 = all_u[idx[2]] * sx;
+    if (std::max({x0, x1, x2}) < -1.f || std::min({x0, x1, x2}) > band.right) return;
+    const RasterVertex a{x0, y0, 1.0 / z0}, b{x1, y1, 1.0 / z1}, c{x2, y2, 1.0 / z2};
+    internal::RasterizeTriangle(a, b, c, band.row_begin, band.row_end, &depth_buffer);
+  } else {
+    Eigen::Vector3d p_camera[3];
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Vector3d p(x[idx[k]], y[idx[k]], z[idx[k]]);
+      p_camera[k] = camera_from_world * (p - camera_centre);
+    }
+    internal::ClipAndRasterizeTriangle(p_camera, camera, band.scale_x, band.scale_y, band.row_begin,
+                                       band.row_end, &depth_buffer);
   }
 }
 
 void CpuProjector::Impl::TestChunk(int worker) {
   WorkerScratch& s = scratch[worker];
-  const size_t begin = ChunkBegin(worker), end = ChunkEnd(worker);
-  ProjectedVertex* out = ReserveOut(s, end - begin);
+  size_t count = 0;
+  for (size_t k = visible_split[worker]; k < visible_split[worker + 1]; ++k) {
+    const internal::CullGroup& group = vertex_groups[visible_groups[k]];
+    ProjectedVertex* out = ReserveOut(s, count + (group.end - group.begin));
+    count = TestGroup(group.begin, group.end, out, count);
+  }
+  s.count = count;
+}
+
+size_t CpuProjector::Impl::TestGroup(size_t begin, size_t end, ProjectedVertex* out,
+                                     size_t count) const {
   const float scale_x = static_cast<float>(depth_buffer.width()) / static_cast<float>(camera.width);
   const float scale_y =
       static_cast<float>(depth_buffer.height()) / static_cast<float>(camera.height);
   const float relative = 1.f + static_cast<float>(options.occlusion_depth_bias_relative);
   const float absolute = static_cast<float>(options.occlusion_depth_bias_m);
   const int max_x = depth_buffer.width() - 1, max_y = depth_buffer.height() - 1;
-  size_t count = 0;
   for (size_t i = begin; i < end; ++i) {
     if (!all_visible[i]) continue;
     const int bx = std::clamp(static_cast<int>(std::floor(all_u[i] * scale_x)), 0, max_x);
@@ -168,7 +244,7 @@ void CpuProjector::Impl::TestChunk(int worker) {
       out[count++] = ProjectedVertex{static_cast<VertexId>(i), all_u[i], all_v[i], all_depth[i]};
     }
   }
-  s.count = count;
+  return count;
 }
 
 CpuProjector::CpuProjector(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
@@ -176,6 +252,9 @@ CpuProjector::~CpuProjector() = default;
 
 size_t CpuProjector::num_vertices() const { return impl_->num_vertices; }
 int CpuProjector::num_threads() const { return impl_->pool->size(); }
+size_t CpuProjector::last_vertices_considered() const {
+  return impl_->options.occlusion ? impl_->transformed_vertices : impl_->frame_vertices;
+}
 
 Expected<std::unique_ptr<CpuProjector>> CpuProjector::Create(const Scene& scene,
                                                              const ProjectorOptions& options) {
@@ -222,8 +301,22 @@ Expected<std::unique_ptr<CpuProjector>> CpuProjector::Create(const Scene& scene,
     s.depth.resize(kBlockSize);
     s.visible.resize(kBlockSize);
   }
+  impl->vertex_groups = internal::MakeVertexGroups(impl->x.data(), impl->y.data(), impl->z.data(),
+                                                   n, kVertexGroupSize);
   if (options.occlusion) {
     impl->triangles = scene.triangles;
+    impl->triangle_groups = internal::MakeTriangleGroups(
+        impl->triangles, impl->x.data(), impl->y.data(), impl->z.data(), kTriangleGroupSize);
+    impl->tri_ref_begin.push_back(0);
+    for (const internal::CullGroup& group : impl->triangle_groups) {
+      std::vector<uint32_t> refs;
+      for (size_t i = 3 * size_t{group.begin}; i < 3 * size_t{group.end}; ++i)
+        refs.push_back(static_cast<uint32_t>(impl->triangles[i] / kVertexGroupSize));
+      std::sort(refs.begin(), refs.end());
+      refs.erase(std::unique(refs.begin(), refs.end()), refs.end());
+      impl->tri_refs.insert(impl->tri_refs.end(), refs.begin(), refs.end());
+      impl->tri_ref_begin.push_back(static_cast<uint32_t>(impl->tri_refs.size()));
+    }
     impl->all_u.resize(n);
     impl->all_v.resize(n);
     impl->all_depth.resize(n);
@@ -245,11 +338,7 @@ Status CpuProjector::Project(const Pose3& world_from_camera, const Camera& camer
   m.camera_from_world = world_from_camera.RotationMatrix().transpose();
   m.camera_centre = world_from_camera.translation();
   const int pool_size = m.pool->size();
-  m.active_workers = static_cast<int>(std::clamp<size_t>(m.num_vertices / kMinVerticesPerWorker, 1,
-                                                         static_cast<size_t>(pool_size)));
-  const size_t per_worker = (m.num_vertices + m.active_workers - 1) / m.active_workers;
-  m.chunk_size = std::max<size_t>(
-      kChunkAlignment, (per_worker + kChunkAlignment - 1) / kChunkAlignment * kChunkAlignment);
+  m.Cull(world_from_camera, pool_size);
 
   if (!m.options.occlusion) {
     auto project = [&m](int worker) {

@@ -153,4 +153,41 @@ void ClipAndRasterizeTriangle(const Eigen::Vector3d (&p_camera)[3], const Camera
                               double scale_x, double scale_y, int row_begin, int row_end,
                               DepthBuffer* buffer);
 
+// Culling. Vertices are grouped in contiguous id ranges (ids follow the meshes and their faces,
+// so a range is spatially compact) and triangles in contiguous ranges, each group with its
+// bounding box. A frame touches only the groups whose box may be seen.
+struct CullGroup {
+  uint32_t begin = 0;  // first vertex id (or triangle) of the group
+  uint32_t end = 0;    // one past the last
+  Eigen::Vector3f min = Eigen::Vector3f::Zero();
+  Eigen::Vector3f max = Eigen::Vector3f::Zero();
+};
+
+// Groups of group_size consecutive vertices (the last one shorter).
+std::vector<CullGroup> MakeVertexGroups(const float* x, const float* y, const float* z, size_t n,
+                                        size_t group_size);
+// Groups of group_size consecutive triangles, boxes over their corners.
+std::vector<CullGroup> MakeTriangleGroups(const std::vector<uint32_t>& triangles, const float* x,
+                                          const float* y, const float* z, size_t group_size);
+
+// A conservative frustum test: MayBeVisible() is false only when no point of the box lies at
+// near <= Z <= far with (u, v) within margin_px of the image (checked against the box's
+// corners, in double, so the float kernel's rounding can never make a culled vertex visible).
+class FrustumCuller {
+ public:
+  FrustumCuller(const Pose3& world_from_camera, const Camera& camera, double margin_px);
+  bool MayBeVisible(const CullGroup& group) const;
+
+ private:
+  Eigen::Matrix3d camera_from_world_;
+  Eigen::Vector3d centre_;
+  // Each plane n . q >= 0 (q in camera coordinates) holds for every visible point.
+  Eigen::Vector4d planes_[6];
+};
+
+// Splits a list of groups into `parts` consecutive runs of about equal vertex (or triangle)
+// counts: run k is list[split[k] .. split[k + 1]).
+void SplitByCount(const std::vector<CullGroup>& groups, const std::vector<uint32_t>& list,
+                  int parts, std::vector<size_t>* split);
+
 }  // namespace m2s::internal

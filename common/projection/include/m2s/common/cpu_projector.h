@@ -15,6 +15,13 @@
 // projector (contiguous id ranges, so the output is identical for any thread count and is
 // sorted by id). No allocation per frame in steady state.
 //
+// Culling. Vertices are grouped in runs of 4096 consecutive ids (ids follow the meshes and
+// their faces, so a run is spatially compact) and triangles in runs of 4096, each group with
+// its bounding box. A frame first tests the boxes against the view frustum (conservatively,
+// in double, with a 2-pixel margin) and transforms, rasterises and tests only the groups that
+// may be seen (with occlusion: also the vertex groups of triangles that may be seen). The
+// output is exactly that of projecting everything; the work follows what is in view.
+//
 // Occlusion (ProjectorOptions::occlusion), the rule shared with the GPU projector:
 //  1. Depth buffer of bw x bh pixels, bw = max(1, lround(width * s)), bh = max(1,
 //     lround(height * s)), s = occlusion_resolution_scale. Image pixel coordinates map to
@@ -63,6 +70,9 @@ class CpuProjector final : public Projector {
   std::string_view name() const override { return "cpu"; }
 
   size_t num_vertices() const;
+  // Vertices of the groups the last Project() could not cull (those it transformed and
+  // tested): a measure of the work, in proportion to what is in view.
+  size_t last_vertices_considered() const;
   // Worker threads in the pool, the calling thread included.
   int num_threads() const;
 
