@@ -34,6 +34,8 @@ struct Args {
   std::string mesh;        // empty: the default scene
   std::string trajectory;  // empty: DefaultTrajectory()
   std::string camera_json;
+  int width = 640, height = 480;  // without --camera: the client's default camera
+  double fov_deg = 90.0;
   double fps = 0;  // 0: one image per trajectory pose
   std::string format;
   std::string out;
@@ -98,11 +100,13 @@ Status Run(const Args& args) {
       (args.mesh_scale != 1.0 || args.mesh_offset != std::vector<double>{0, 0, 0})) {
     return Status::Error("--mesh-scale and --mesh-offset need --mesh");
   }
-  Camera camera = Camera::FromHorizontalFov(640, 480, 90.0);  // the client's default
+  Camera camera = Camera::FromHorizontalFov(args.width, args.height, args.fov_deg);
   if (!args.camera_json.empty()) {
     Expected<Camera> read = ReadCameraJson(args.camera_json);
     if (!read) return read.status();
     camera = *read;
+  } else if (Status s = camera.Check(); !s) {
+    return s;
   }
   Expected<Trajectory> frames = FrameTimes(args);
   if (!frames) return frames.status();
@@ -155,8 +159,14 @@ int main(int argc, char** argv) {
       ->expected(3);
   app.add_option("--trajectory", args.trajectory,
                  "TUM trajectory (world_from_camera); default: the client's default trajectory");
-  app.add_option("--camera", args.camera_json,
-                 "CAMERA.json: {width,height,fx,fy,cx,cy,near,far}; default 640x480, 90 deg");
+  auto* camera = app.add_option("--camera", args.camera_json,
+                                "CAMERA.json: {width,height,fx,fy,cx,cy,near,far}");
+  auto* width = app.add_option("--width", args.width, "Image width (px)")->capture_default_str();
+  auto* height =
+      app.add_option("--height", args.height, "Image height (px)")->capture_default_str();
+  auto* fov = app.add_option("--fov-deg", args.fov_deg, "Horizontal field of view (degrees)")
+                  ->capture_default_str();
+  for (CLI::Option* o : {width, height, fov}) camera->excludes(o);
   app.add_option("--fps", args.fps, "Resample the trajectory at this rate (default: every pose)");
   app.add_option("--format", args.format, "tum-rgbd or euroc")->required();
   app.add_option("--out", args.out, "Output folder (created)")->required();
