@@ -131,6 +131,21 @@ TEST_F(SceneRendererTest, MissingTextureIsANamedError) {
       << renderer.error();
 }
 
+// Vertex colours multiply the diffuse colour: a triangle facing the camera at depth 2.
+TEST_F(SceneRendererTest, VertexColoursMultiplyTheDiffuseColour) {
+  WriteFile("tri.mtl", "newmtl grey\nKd 0.5 0.5 0.5\n");
+  WriteFile("tri.obj",
+            "mtllib tri.mtl\nusemtl grey\nv -1 -1 2 0.2 0.8 0.4\nv 1 -1 2 0.2 0.8 0.4\n"
+            "v 0 1 2 0.2 0.8 0.4\nf 1 2 3\n");
+  auto mesh = LoadRenderMesh((dir_ / "tri.obj").string());
+  ASSERT_TRUE(mesh) << mesh.error();
+  const RenderedFrame frame = Render(*mesh, Pose3::Identity());
+  const size_t k = static_cast<size_t>(camera_.height / 2) * frame.width + camera_.width / 2;
+  EXPECT_NEAR(frame.depth[k], 2.0, 1e-5);
+  const double want[3] = {0.5 * 0.2, 0.5 * 0.8, 0.5 * 0.4};
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(frame.rgb[3 * k + c], 255.0 * want[c], 1.5) << c;
+}
+
 // Two untextured planes of one material (no normals in the file: flat shading): one facing the
 // camera, one turned 60 degrees about the camera's y axis. Colour = Kd * (ambient + (1 -
 // ambient) |n_z|), depth = the ray's intersection with the plane.
