@@ -16,7 +16,7 @@
 //     reprojects within ransac_reprojection_px in both.
 // Points never move once made: no bundle adjustment, no loop closure.
 //
-// Config (JSON object, all optional): min_parallax_deg (1.0), init_min_flow_px (20),
+// Config (JSON object, all optional): min_parallax_deg (3.0), init_min_flow_px (20),
 // init_min_points (50), min_inliers (15), ransac_reprojection_px (2.0), ransac_iterations (100),
 // sighting_max_age_frames (60). Unknown keys are refused.
 #include <algorithm>
@@ -43,7 +43,7 @@ using m2s::plugin::TrackState;
 constexpr double kDegToRad = M_PI / 180.0;
 
 struct Config {
-  double min_parallax_deg = 1.0;
+  double min_parallax_deg = 3.0;
   double init_min_flow_px = 20.0;
   int init_min_points = 50;
   int min_inliers = 15;
