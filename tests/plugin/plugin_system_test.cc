@@ -173,6 +173,48 @@ TEST(PluginSystem, APluginRefusingItsConfigSaysWhy) {
   EXPECT_NE(method.error().find("refused to start"), std::string::npos);
 }
 
+TEST(PluginSystem, CppExceptionsStopAtTheAbiBoundary) {
+  const std::string path =
+      std::string(M2S_BINARY_DIR) + "/test_plugins/" + PluginFileName("throwing");
+  auto loaded = LoadPlugin(path);
+  ASSERT_TRUE(loaded.ok()) << loaded.error();
+  EXPECT_EQ((*loaded)->table().trajectory, nullptr);  // kHasTrajectory is false
+  auto refused = CreatePluginSystem(*loaded, slam::Options(), R"({"x": 1})");
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.error(), "plug-in throwing refused to start: config: no options here");
+
+  auto system = CreatePluginSystem(*loaded, slam::Options(), "{}");
+  ASSERT_TRUE(system.ok()) << system.error();
+  EXPECT_EQ((*system)->Track(MakeFrame(1)).world_from_camera.translation().x(), 1.0);
+  EXPECT_EQ((*system)->Track(MakeFrame(2)).world_from_camera.translation().x(), 2.0);
+  EXPECT_EQ((*system)->Track(MakeFrame(3)).reject_reason, "plugin_error");
+  EXPECT_EQ((*system)->Track(MakeFrame(4)).reject_reason, "plugin_error");
+  // The default Reset() recreates the method: its own frame count starts again.
+  (*system)->Reset();
+  EXPECT_EQ((*system)->Track(MakeFrame(5)).world_from_camera.translation().x(), 1.0);
+
+  // The messages themselves, through the C table: one line each.
+  const m2s_plugin& table = (*loaded)->table();
+  const m2s_camera camera{640, 480, 500, 500, 320, 240, 0.05, 50};
+  char error[128] = "";
+  void* instance = table.create(&camera, "{}", error, sizeof(error));
+  ASSERT_NE(instance, nullptr);
+  m2s_frame frame{3, 0.3, nullptr, 0};
+  m2s_track_result result{};
+  EXPECT_NE(table.process_frame(instance, &frame, &result, error, sizeof(error)), 0);
+  EXPECT_STREQ(error, "bad frame 3");
+  frame.seq = 4;
+  EXPECT_NE(table.process_frame(instance, &frame, &result, error, sizeof(error)), 0);
+  EXPECT_STREQ(error, "unknown C++ exception");
+  char tiny[5] = "";
+  frame.seq = 3;
+  EXPECT_NE(table.process_frame(instance, &frame, &result, tiny, sizeof(tiny)), 0);
+  EXPECT_STREQ(tiny, "bad ");  // cut to the buffer, NUL-terminated
+  EXPECT_NE(table.relocalise(instance, error, sizeof(error)), 0);
+  EXPECT_STREQ(error, "relocalise is not supported");
+  table.destroy(instance);
+}
+
 TEST(PluginSystem, LoadMethodRefusesMapGroupsForAPlugin) {
   auto method = LoadMethod(kFaulty, "");
   ASSERT_TRUE(method.ok()) << method.error();

@@ -211,19 +211,19 @@ using MethodOf = typename Ptr::element_type;
 // Defines the exported entry point m2s_plugin_entry() of a plug-in whose instances `factory`
 // makes: std::unique_ptr<MethodT> factory(const m2s_camera&, const std::string& config_json),
 // MethodT derived from m2s::plugin::Method. Use once per shared library, at namespace scope.
-#define M2S_DEFINE_PLUGIN(name, description, factory)                                         \
-  namespace m2s_plugin_definition {                                                           \
-  inline std::unique_ptr<::m2s::plugin::Method> Make(const m2s_camera& camera,                \
-                                                     const std::string& config_json) {        \
-    return factory(camera, config_json);                                                      \
-  }                                                                                           \
-  using MethodType = ::m2s::plugin::internal::MethodOf<decltype(factory(                      \
-      std::declval<const m2s_camera&>(), std::declval<const std::string&>()))>;               \
-  static_assert(std::is_base_of_v<::m2s::plugin::Method, MethodType>,                         \
-                "the factory must return std::unique_ptr<T>, T derived from Method");         \
-  }                                                                                           \
-  extern "C" M2S_PLUGIN_EXPORT const m2s_plugin* m2s_plugin_entry(void) {                     \
-    return ::m2s::plugin::internal::Trampolines<                                              \
-        &m2s_plugin_definition::Make, m2s_plugin_definition::MethodType>::Table(name,         \
-                                                                                description); \
+#define M2S_DEFINE_PLUGIN(name, description, factory)                                 \
+  namespace m2s_plugin_definition {                                                   \
+  inline std::unique_ptr<::m2s::plugin::Method> M2sDefinedPluginFactory(              \
+      const m2s_camera& camera, const std::string& config_json) {                     \
+    return factory(camera, config_json);                                              \
+  }                                                                                   \
+  using M2sDefinedPluginMethod = ::m2s::plugin::internal::MethodOf<decltype(factory(  \
+      std::declval<const m2s_camera&>(), std::declval<const std::string&>()))>;       \
+  static_assert(std::is_base_of_v<::m2s::plugin::Method, M2sDefinedPluginMethod>,     \
+                "the factory must return std::unique_ptr<T>, T derived from Method"); \
+  }                                                                                   \
+  extern "C" M2S_PLUGIN_EXPORT const m2s_plugin* m2s_plugin_entry(void) {             \
+    return ::m2s::plugin::internal::Trampolines<                                      \
+        &m2s_plugin_definition::M2sDefinedPluginFactory,                              \
+        m2s_plugin_definition::M2sDefinedPluginMethod>::Table(name, description);     \
   }
