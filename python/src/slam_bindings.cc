@@ -225,7 +225,9 @@ void RegisterSlam(py::module_& m) {
       .def("trajectory", &PySystem::Trajectory,
            "Every processed frame's latest estimate: dict of seq, timestamp, state, has_pose, "
            "pose (N,4,4; NaN without a pose), is_keyframe, map_id.")
-      .def("map_points", &PySystem::MapPoints, "(ids (N,) uint32, positions (N,3) float32)")
+      .def("map_points", &PySystem::MapPoints,
+           "The well-constrained map points (those sent to clients, FullMap()): (ids (N,) "
+           "uint32, positions (N,3) float32).")
       .def("stats", &PySystem::Stats)
       .def("reset", &PySystem::Reset)
       .def("save_map", &PySystem::SaveMap, py::arg("path"))
