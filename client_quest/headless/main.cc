@@ -4,6 +4,11 @@
 //              --fov-deg F] [--fps F] [--fast] [--on-device | --lcm-url URL]
 //              [--projector gpu|cpu] [--no-occlusion] [--noise-px S --outlier-ids P --dropout P
 //              --seed N] [--key-file FILE [--encrypt]] [--map-group NAME] [--out DIR]
+//              [--method NAME [--method-config FILE.json]]
+//
+// --method NAME (on-device only): the in-process server's localisation method: vertex_slam
+// (default, the built-in SLAM) or a plug-in's name or path (docs/design/plugins.md), with its
+// options from --method-config. A plug-in cannot join a map group.
 //
 // --map-group NAME: the session joins the server's map group NAME (collaborative SLAM: every
 // client of a group shares one map); metrics.json then reports merged_at_s.
@@ -22,6 +27,7 @@
 #include "m2s/common/camera_io.h"
 #include "m2s/common/logging.h"
 #include "m2s/headless/headless_run.h"
+#include "m2s/plugin/plugin_system.h"
 
 int main(int argc, char** argv) {
   m2s::headless::HeadlessOptions options;
@@ -77,12 +83,35 @@ int main(int argc, char** argv) {
   app.add_option("--out", options.out_dir, "Output folder")->capture_default_str();
   app.add_flag(
       "--no-map-png", [&options](int64_t) { options.render_map = false; }, "Do not render map.png");
+  std::string method_config;
+  app.add_option("--method", options.method,
+                 "On-device localisation method: vertex_slam (built in) or a plug-in's name or "
+                 "path");
+  app.add_option("--method-config", method_config, "The plug-in's options (JSON object file)");
   CLI11_PARSE(app, argc, argv);
   options.send_budget = options.server.slam.feature_budget = budget;
 
   if (m2s::Status name = m2s::wire::CheckMapGroupName(options.map_group); !name) {
     std::cerr << "m2s_client: --map-group: " << name.message() << "\n";
     return 2;
+  }
+  if (!m2s::plugin::IsBuiltinMethod(options.method) || !method_config.empty()) {
+    if (!lcm_url.empty()) {
+      std::cerr << "m2s_client: --method runs on-device; give it to m2s_server with --lcm-url\n";
+      return 2;
+    }
+    if (!options.map_group.empty()) {
+      std::cerr << "m2s_client: --map-group needs the built-in SLAM (--method vertex_slam)\n";
+      return 2;
+    }
+  }
+  if (!method_config.empty()) {
+    auto text = m2s::plugin::ReadMethodConfig(method_config);
+    if (!text) {
+      std::cerr << "m2s_client: " << text.error() << "\n";
+      return 2;
+    }
+    options.method_config = *text;
   }
   if (!camera_json.empty()) {
     auto camera = m2s::ReadCameraJson(camera_json);

@@ -4,7 +4,13 @@
 //              [--save-maps DIR] [--max-features N] [--budget N] [--stats-period S]
 //              [--key-file FILE [--encrypt] [--max-message-age S]] [--stats-out FILE.json]
 //              [--shard K/N] [--max-groups N] [--load-map GROUP=FILE]... [--resume-maps]
-//              [--save-period S]
+//              [--save-period S] [--method NAME [--method-config FILE.json]]
+//
+// --method NAME: the localisation method of every session: vertex_slam (default, the built-in
+// SLAM) or a plug-in, by name (libm2s_plugin_NAME.so in M2S_PLUGIN_PATH, <build>/plugins, the
+// install's lib/m2s/plugins) or path (docs/design/plugins.md); --method-config: the plug-in's
+// options (a JSON object). With a plug-in, map groups are refused: a HELLO naming one is
+// REJECTED, and --load-map / --resume-maps / --save-maps are refused at start.
 //
 // --shard K/N: this server is K of N on one bus (common/shard.h): it answers only the HELLOs
 // whose map group (or, without a group, session id) hashes to K, creates sessions only from
@@ -36,6 +42,7 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include "m2s/plugin/plugin_system.h"
 #include "m2s/server_app/lcm_server.h"
 
 namespace {
@@ -156,6 +163,11 @@ int main(int argc, char** argv) {
   app.add_option("--max-message-age", max_message_age_s,
                  "Keyed bus: refuse messages older than S seconds (0: no check)")
       ->capture_default_str();
+  std::string method = m2s::plugin::kBuiltinMethod, method_config;
+  app.add_option("--method", method,
+                 "Localisation method: vertex_slam (built in) or a plug-in's name or path")
+      ->capture_default_str();
+  app.add_option("--method-config", method_config, "The plug-in's options (JSON object file)");
   CLI11_PARSE(app, argc, argv);
   auto security = m2s::wire::MakeBusSecurity(key_file, encrypt, max_message_age_s);
   if (!security) {
@@ -200,6 +212,31 @@ int main(int argc, char** argv) {
     return 2;
   }
 
+  std::string method_config_json;
+  if (!method_config.empty()) {
+    auto text = m2s::plugin::ReadMethodConfig(method_config);
+    if (!text) {
+      std::cerr << "m2s_server: " << text.error() << "\n";
+      return 2;
+    }
+    method_config_json = *text;
+  }
+  if (!m2s::plugin::IsBuiltinMethod(method) &&
+      (!options.group_maps.empty() || options.resume_maps ||
+       !options.server.save_maps_dir.empty())) {
+    std::cerr << "m2s_server: --load-map, --resume-maps and --save-maps need the built-in SLAM "
+                 "(--method vertex_slam)\n";
+    return 2;
+  }
+  auto factories = m2s::plugin::LoadMethod(method, method_config_json);
+  if (!factories) {
+    std::cerr << "m2s_server: " << factories.error() << "\n";
+    return 2;
+  }
+  if (!factories->path.empty()) {
+    std::cerr << "m2s_server: method " << factories->name << " (" << factories->path << ")\n";
+  }
+
   // Block the stop signals in every thread; this thread waits for them below.
   sigset_t signals;
   sigemptyset(&signals);
@@ -207,7 +244,7 @@ int main(int argc, char** argv) {
   sigaddset(&signals, SIGTERM);
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
 
-  m2s::server_app::LcmServer server(options);
+  m2s::server_app::LcmServer server(options, factories->system, factories->group);
   if (m2s::Status started = server.Start(); !started) {
     std::cerr << "m2s_server: " << started.message() << "\n";
     return 1;

@@ -3,8 +3,11 @@
 namespace m2s::client {
 
 OnDeviceTransport::OnDeviceTransport(server_app::ServerOptions options,
-                                     server_app::SystemFactory factory)
-    : options_(std::move(options)), factory_(std::move(factory)) {}
+                                     server_app::SystemFactory factory,
+                                     server_app::MapGroupFactory group_factory)
+    : options_(std::move(options)),
+      factory_(std::move(factory)),
+      group_factory_(std::move(group_factory)) {}
 
 OnDeviceTransport::~OnDeviceTransport() { Stop(); }
 
@@ -16,7 +19,7 @@ Status OnDeviceTransport::Start(MessageHandler handler) {
       [handler = std::move(handler)](const std::string& channel, std::vector<uint8_t> bytes) {
         handler(channel, bytes.data(), bytes.size());
       },
-      factory_);
+      factory_, group_factory_);
   return Status::Ok();
 }
 

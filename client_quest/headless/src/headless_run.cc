@@ -14,6 +14,7 @@
 #include "m2s/common/scene.h"
 #include "m2s/common/trajectory.h"
 #include "m2s/gpu/projector_factory.h"
+#include "m2s/plugin/plugin_system.h"
 
 namespace m2s::headless {
 namespace {
@@ -78,7 +79,9 @@ Expected<HeadlessResult> RunHeadless(const HeadlessOptions& options) {
   if (options.on_device) {
     server_app::ServerOptions server = options.server;
     server.slam.deterministic = server.slam.deterministic || options.fast;
-    transport = std::make_unique<client::OnDeviceTransport>(server);
+    auto method = plugin::LoadMethod(options.method, options.method_config);
+    if (!method) return method.status();
+    transport = std::make_unique<client::OnDeviceTransport>(server, method->system, method->group);
   } else {
     transport = std::make_unique<client::LcmTransport>(options.lcm_url, options.bus);
   }

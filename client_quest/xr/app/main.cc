@@ -14,6 +14,8 @@
 //    "projector": "gpu", "occlusion": true, "camera": {"width": 640, "height": 480, "fov_deg": 90},
 //    "stage": false, "frames": 0, "events": "", "overlay": true, "other_keyframes": true,
 //    "mesh_visible": true, "map_group": "", "out": "out"}
+// "method" (default "vertex_slam", the built-in SLAM) names the on-device localisation method:
+// a plug-in's name or path (docs/design/plugins.md), "method_config" its options (an object).
 // "map_group" names the shared map the SLAM session joins (sent in its HELLO); empty: a map of
 // its own. Controller buttons (OpenXR actions) work whatever the config; see xr_actions.h.
 // Flags given on the command line override the file.
@@ -65,6 +67,14 @@ bool ApplyConfig(const std::string& path, XrClientOptions* options, std::string*
     options->overlay = j.value("overlay", options->overlay);
     options->show_other_keyframes = j.value("other_keyframes", options->show_other_keyframes);
     options->map_group = j.value("map_group", options->map_group);
+    options->method = j.value("method", options->method);
+    if (j.contains("method_config")) {
+      if (!j.at("method_config").is_object()) {
+        *why = "config: method_config must be a JSON object";
+        return false;
+      }
+      options->method_config = j.at("method_config").dump();
+    }
     options->draw_mesh = j.value("mesh_visible", options->draw_mesh);
     options->out_dir = j.value("out", options->out_dir);
   } catch (const nlohmann::json::exception& e) {

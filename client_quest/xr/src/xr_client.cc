@@ -23,6 +23,7 @@
 #include "m2s/common/scene.h"
 #include "m2s/gpu/gl_context.h"
 #include "m2s/gpu/projector_factory.h"
+#include "m2s/plugin/plugin_system.h"
 #include "m2s/render/map_renderer.h"
 #include "m2s/reporting/run_outputs.h"
 #include "m2s/xr/axis_conversion.h"
@@ -94,7 +95,10 @@ struct SlamLink {
 Expected<SlamLink> OpenLink(const XrClientOptions& options, uint64_t seed, double hello_timeout_s) {
   SlamLink link;
   if (options.on_device) {
-    link.transport = std::make_unique<client::OnDeviceTransport>(options.server);
+    auto method = plugin::LoadMethod(options.method, options.method_config);
+    if (!method) return method.status();
+    link.transport =
+        std::make_unique<client::OnDeviceTransport>(options.server, method->system, method->group);
   } else {
     link.transport = std::make_unique<client::LcmTransport>(options.lcm_url, options.bus);
   }
@@ -156,6 +160,9 @@ Status XrClientOptions::Check() const {
   }
   if (out_dir.empty()) {
     return Status::Error("out_dir is empty");
+  }
+  if (!plugin::IsBuiltinMethod(method) && !map_group.empty()) {
+    return Status::Error("map_group needs the built-in SLAM (method \"vertex_slam\")");
   }
   return Status::Ok();
 }

@@ -20,7 +20,9 @@ class OnDeviceTransport final : public Transport {
  public:
   explicit OnDeviceTransport(
       server_app::ServerOptions options,
-      server_app::SystemFactory factory = &server_app::SessionManager::DefaultSystemFactory);
+      server_app::SystemFactory factory = &server_app::SessionManager::DefaultSystemFactory,
+      server_app::MapGroupFactory group_factory =
+          &server_app::SessionManager::DefaultMapGroupFactory);
   ~OnDeviceTransport() override;
   Status Start(MessageHandler handler) override;
   Status Publish(const std::string& channel, const std::vector<uint8_t>& bytes) override;
@@ -32,6 +34,7 @@ class OnDeviceTransport final : public Transport {
  private:
   const server_app::ServerOptions options_;
   const server_app::SystemFactory factory_;
+  const server_app::MapGroupFactory group_factory_;
   std::unique_ptr<server_app::SessionManager> manager_;
 };
 

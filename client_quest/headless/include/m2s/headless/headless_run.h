@@ -44,6 +44,11 @@ struct HeadlessOptions {
   int max_frames = 0;
   // How long to wait for a pose in --fast mode, and for the last pose at the end.
   double pose_timeout_s = 10.0;
+  // The on-device server's localisation method: "" or "vertex_slam" (the built-in SLAM) or a
+  // plug-in's name or path (m2s/plugin/plugin_system.h), with its config (a JSON object's text;
+  // empty: none). A plug-in refuses map groups.
+  std::string method;
+  std::string method_config;
   // Server options of the on-device session manager.
   server_app::ServerOptions server;
   // When not empty, every message the client publishes is also written to this LCM log.

@@ -58,6 +58,10 @@ struct XrClientOptions {
   // Features sent per frame: the lowest-ranked ids (0: all); default the SLAM feature budget.
   int send_budget = slam::Options().feature_budget;
   server_app::ServerOptions server;  // the on-device server
+  // The on-device server's localisation method ("" or "vertex_slam": the built-in SLAM; else a
+  // plug-in's name or path) and its config (a JSON object's text; empty: none).
+  std::string method;
+  std::string method_config;
   bool stage_space = false;          // world = STAGE instead of LOCAL
   bool overlay = true;               // draw map points, keyframes and poses at start
   bool show_other_keyframes = true;  // draw other agents' keyframes (own colour) at start
