@@ -79,18 +79,22 @@ FeatureNoiseOptions NoiseFromDict(const py::object& noise_object) {
   for (const auto& item : py::reinterpret_borrow<py::dict>(noise_object)) {
     const std::string key = py::str(item.first);
     const py::handle value = item.second;
-    if (key == "pixel_noise_sigma") {
-      noise.pixel_noise_sigma = value.cast<double>();
-    } else if (key == "quantization_px") {
-      noise.quantization_px = value.cast<double>();
-    } else if (key == "dropout_probability") {
-      noise.dropout_probability = value.cast<double>();
-    } else if (key == "wrong_id_fraction") {
-      noise.wrong_id_fraction = value.cast<double>();
-    } else if (key == "seed") {
-      noise.seed = value.cast<uint64_t>();
-    } else {
-      throw py::value_error("noise: unknown key '" + key + "'");
+    try {
+      if (key == "pixel_noise_sigma") {
+        noise.pixel_noise_sigma = value.cast<double>();
+      } else if (key == "quantization_px") {
+        noise.quantization_px = value.cast<double>();
+      } else if (key == "dropout_probability") {
+        noise.dropout_probability = value.cast<double>();
+      } else if (key == "wrong_id_fraction") {
+        noise.wrong_id_fraction = value.cast<double>();
+      } else if (key == "seed") {
+        noise.seed = value.cast<uint64_t>();
+      } else {
+        throw py::value_error("noise: unknown key '" + key + "'");
+      }
+    } catch (const py::cast_error&) {
+      throw py::value_error("noise: '" + key + "' must be a number (seed: an integer >= 0)");
     }
   }
   if (Status s = noise.Check(); !s) RaiseValueError(s.Prefixed("noise: "));

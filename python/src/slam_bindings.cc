@@ -1,6 +1,7 @@
 // mesh2slam.System: the SLAM library (slam::System) frame by frame.
 #include <limits>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -49,7 +50,9 @@ py::object PoseOrNone(slam::TrackingState state, const Pose3& pose) {
   return has_pose ? py::object(PoseToArray(pose)) : py::none();
 }
 
-// The Python face of slam::System. Tracking releases the GIL.
+// The Python face of slam::System. Tracking releases the GIL; a mutex keeps Track() and
+// Reset() to one thread at a time (the System's single-producer contract) when several Python
+// threads share one System.
 class PySystem {
  public:
   explicit PySystem(const slam::Options& options) {
@@ -70,6 +73,7 @@ class PySystem {
     slam::TrackResult result;
     {
       py::gil_scoped_release release;
+      std::lock_guard<std::mutex> lock(track_mutex_);
       result = system_->Track(frame);
     }
     py::dict dict;
@@ -173,6 +177,7 @@ class PySystem {
 
   void Reset() {
     py::gil_scoped_release release;
+    std::lock_guard<std::mutex> lock(track_mutex_);
     system_->Reset();
   }
   void SaveMap(const std::string& path) const {
@@ -188,6 +193,7 @@ class PySystem {
 
  private:
   std::unique_ptr<slam::System> system_;
+  std::mutex track_mutex_;
 };
 
 }  // namespace

@@ -143,6 +143,7 @@ class BadInputTest(unittest.TestCase):
         self.assert_raises(ValueError, "budget", project, budget=-1)
         self.assert_raises(ValueError, "unknown key 'sigma'", project, noise={"sigma": 1})
         self.assert_raises(ValueError, "noise", project, noise={"dropout_probability": 2.0})
+        self.assert_raises(ValueError, "seed", project, noise={"seed": -1})
         self.assert_raises(ValueError, "occlusion", project, occlusion=True, occlusion_scale=0)
 
     def test_bad_files(self):
