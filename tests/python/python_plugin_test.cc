@@ -27,6 +27,7 @@ constexpr char kPluginPath[] = M2S_BINARY_DIR "/plugins/libm2s_plugin_python.so"
 class PythonPluginTest : public ::testing::Test {
  protected:
   void SetUp() override {
+    setenv("PYTHONDONTWRITEBYTECODE", "1", 1);  // no __pycache__ in the source tree
     library_ = dlopen(kPluginPath, RTLD_NOW | RTLD_LOCAL);
     ASSERT_NE(library_, nullptr) << dlerror();
     auto entry = reinterpret_cast<m2s_plugin_entry_fn>(dlsym(library_, M2S_PLUGIN_ENTRY_SYMBOL));
@@ -181,6 +182,7 @@ TEST_F(PythonPluginTest, ErrorsBecomeOneLineMessages) {
 // The same tracker through the benchmark: m2s_client finds the plug-in by name in
 // <build>/plugins and writes the run's metrics.
 TEST(PythonPluginClient, ExampleTrackerRunsThroughM2sClient) {
+  setenv("PYTHONDONTWRITEBYTECODE", "1", 1);
   const auto dir = std::filesystem::temp_directory_path() / "m2s_python_plugin_client_test";
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
