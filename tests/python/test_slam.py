@@ -29,44 +29,53 @@ def transform_poses(scale, rotation, translation, poses):
     return out
 
 
+def run(system, times, frames):
+    return [system.track(i + 1, times[i], f) for i, f in enumerate(frames)]
+
+
 class SlamRunTest(unittest.TestCase):
     FRAMES = 60
 
-    def test_short_deterministic_run(self):
-        scene = mesh2slam.load_scene()
-        camera = mesh2slam.default_camera()
+    @classmethod
+    def setUpClass(cls):
+        cls.scene = mesh2slam.load_scene()
+        cls.camera = mesh2slam.default_camera()
         times, poses = mesh2slam.default_trajectory()
-        system = mesh2slam.System(camera=camera, deterministic=True)
-        results = []
-        for i in range(self.FRAMES):
-            features = mesh2slam.project(scene, camera, poses[i], occlusion=True, budget=1000)
-            results.append(system.track(i + 1, times[i], features, ground_truth=poses[i]))
-        states = [r["state"] for r in results]
+        cls.times, cls.poses = times[:cls.FRAMES], poses[:cls.FRAMES]
+        cls.frames = [
+            mesh2slam.project(cls.scene, cls.camera, pose, occlusion=True, budget=1000)
+            for pose in cls.poses
+        ]
+        cls.system = mesh2slam.System(camera=cls.camera, deterministic=True)
+        cls.results = run(cls.system, cls.times, cls.frames)
+
+    def test_short_deterministic_run(self):
+        states = [r["state"] for r in self.results]
         # Monocular: the first frames wait for parallax, then every frame is tracked.
         first_ok = states.index("ok")
         self.assertGreater(first_ok, 0)
         self.assertLess(first_ok, 45)
         self.assertEqual(set(states[:first_ok]), {"not_initialized"})
         self.assertEqual(set(states[first_ok:]), {"ok"})
-        for r in results[first_ok:]:
+        for r in self.results[first_ok:]:
             self.assertEqual(r["pose"].shape, (4, 4))
             self.assertGreaterEqual(r["num_inliers"], 30)
             self.assertEqual(r["map_id"], 0)
-        self.assertIsNone(results[0]["pose"])
+        self.assertIsNone(self.results[0]["pose"])
 
-        trajectory = system.trajectory()
+        trajectory = self.system.trajectory()
         self.assertEqual(len(trajectory["seq"]), self.FRAMES)
         has_pose = trajectory["has_pose"]
         self.assertEqual(int(has_pose.sum()), self.FRAMES - first_ok + 1)  # + the reference
         self.assertTrue(np.isnan(trajectory["pose"][~has_pose]).all())
-        ate = mesh2slam.evaluate_ate(trajectory["pose"][has_pose],
-                                     poses[:self.FRAMES][has_pose], align="sim3")
+        ate = mesh2slam.evaluate_ate(trajectory["pose"][has_pose], self.poses[has_pose],
+                                     align="sim3")
         # Exact features: measured 6.7e-8 m (Release) over these frames.
         self.assertLess(ate["rmse"], 5e-7)
         self.assertEqual(ate["n"], int(has_pose.sum()))
 
-        ids, positions = system.map_points()
-        stats = system.stats()
+        ids, positions = self.system.map_points()
+        stats = self.system.stats()
         # The well-constrained points (those the System sends to clients) of all it holds.
         self.assertLessEqual(len(ids), stats["map_points"])
         self.assertGreater(len(ids), 20)
@@ -75,17 +84,12 @@ class SlamRunTest(unittest.TestCase):
         # Map points in the ground-truth world (the trajectory's alignment) are the vertices.
         to_reference = ate["reference_from_estimate"]
         aligned = positions.astype(np.float64) @ to_reference[:3, :3].T + to_reference[:3, 3]
-        errors = np.linalg.norm(aligned - scene.positions[ids], axis=1)
+        errors = np.linalg.norm(aligned - self.scene.positions[ids], axis=1)
         self.assertLess(np.median(errors), 1e-5)
         self.assertEqual(stats["frames_processed"], self.FRAMES)
         self.assertGreaterEqual(stats["keyframes"], 2)
 
-    def test_track_releases_the_gil(self):
-        scene = mesh2slam.load_scene()
-        camera = mesh2slam.default_camera()
-        times, poses = mesh2slam.default_trajectory()
-        frames = [mesh2slam.project(scene, camera, poses[i], budget=1000) for i in range(40)]
-        system = mesh2slam.System(camera=camera)
+    def test_track_releases_the_gil_and_repeats_bit_identically(self):
         ticks = []
         stop = threading.Event()
 
@@ -96,11 +100,16 @@ class SlamRunTest(unittest.TestCase):
 
         counter = threading.Thread(target=count)
         counter.start()
-        for i, f in enumerate(frames):
-            system.track(i + 1, times[i], (f["id"], f["u"], f["v"]))
+        system = mesh2slam.System(camera=self.camera, deterministic=True)
+        frames = [(f["id"], f["u"], f["v"]) for f in self.frames]  # the tuple form
+        results = run(system, self.times, frames)
         stop.set()
         counter.join()
         self.assertGreater(len(ticks), 1)
+        for a, b in zip(self.results, results):
+            self.assertEqual(a["state"], b["state"])
+            if a["pose"] is not None:
+                np.testing.assert_array_equal(a["pose"], b["pose"])
 
     def test_bad_frames(self):
         system = mesh2slam.System(camera=mesh2slam.default_camera())
