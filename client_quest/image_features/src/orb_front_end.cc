@@ -1,7 +1,6 @@
 #include "m2s/image_features/orb_front_end.h"
 
 #include <algorithm>
-#include <bit>
 #include <chrono>
 #include <climits>
 #include <cmath>
@@ -9,6 +8,7 @@
 #include <string>
 #include <utility>
 
+#include <opencv2/core/hal/hal.hpp>
 #include <opencv2/features2d.hpp>
 
 #include "m2s/common/check.h"
@@ -76,8 +76,9 @@ Eigen::Vector2f Median(std::vector<float> xs, std::vector<float> ys) {
 }  // namespace
 
 int HammingDistance(const OrbDescriptor& a, const OrbDescriptor& b) {
-  return std::popcount(a[0] ^ b[0]) + std::popcount(a[1] ^ b[1]) + std::popcount(a[2] ^ b[2]) +
-         std::popcount(a[3] ^ b[3]);
+  // OpenCV's kernel: SIMD population counts where the CPU has them.
+  return cv::hal::normHamming(reinterpret_cast<const uchar*>(a.data()),
+                              reinterpret_cast<const uchar*>(b.data()), kDescriptorBytes);
 }
 
 Status OrbFrontEnd::Options::Check() const {

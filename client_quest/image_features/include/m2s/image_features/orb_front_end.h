@@ -79,8 +79,8 @@ class OrbFrontEnd {
     int reid_max_hamming = 40;
     double reid_ratio = 0.7;
     // The map: ids seen in the last map_frames frames, at most map_max_ids of them.
-    int map_frames = 60;
-    int map_max_ids = 3000;
+    int map_frames = 30;
+    int map_max_ids = 2000;
 
     Status Check() const;
   };
