@@ -5,14 +5,18 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <map>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "m2s/common/numeric.h"
 #include "m2s/common/trajectory.h"
 #include "m2s/gpu/gl_context.h"
 #include "m2s/headless/headless_run.h"
+#include "m2s/image_features/orb_front_end.h"
+#include "m2s/render/scene_renderer.h"
 #include "test_files.h"
 #include "textured_scene.h"
 
@@ -94,6 +98,62 @@ TEST(OrbHeadlessTest, TracksTheTexturedRoomWithinTheAteBound) {
                           "time_per_frame_ms_p50", "time_per_frame_ms_p95"}) {
     EXPECT_GT(j.at(key).get<double>(), 0.0) << key;
   }
+}
+
+// The renderer's depth is the reference: an id's first sighting, back-projected with the
+// rendered depth, must reproject onto the id's later sightings. This measures the keypoint
+// noise the back end is told to expect (kOrbPixelSigma) and the share of wrong ids.
+TEST(OrbHeadlessTest, TrackIdsOnRenderedFramesStayOnTheirSurfacePoint) {
+  if (!GlContext::AnyEglDisplayAvailable()) GTEST_SKIP() << "no EGL display on this machine";
+  const fs::path dir = testing::TempDir("orb", "ids");
+  auto obj = testing::WriteTexturedRoom(dir / "scene");
+  ASSERT_TRUE(obj.ok()) << obj.error();
+  auto context = GlContext::CreateHeadless();
+  ASSERT_TRUE(context.ok()) << context.error();
+  auto mesh = LoadRenderMesh(*obj);
+  ASSERT_TRUE(mesh.ok()) << mesh.error();
+  const Camera camera = Camera::FromHorizontalFov(320, 240, 90.0);
+  auto renderer = SceneRenderer::Create(*mesh, camera);
+  ASSERT_TRUE(renderer.ok()) << renderer.error();
+  image_features::OrbFrontEnd front_end(image_features::OrbFrontEnd::Options{});
+  const Trajectory walk = SideWalk();
+  std::map<VertexId, Eigen::Vector3d> world_point;  // of each id's first sighting
+  int checked = 0, within_1px = 0, within_2px = 0, far = 0;
+  RenderedFrame frame;
+  cv::Mat grey;
+  for (int k = 0; k < 30; ++k) {
+    const Pose3& world_from_camera = walk.poses()[k].world_from_camera;
+    ASSERT_TRUE((*renderer)->Render(world_from_camera, &frame).ok());
+    cv::cvtColor(cv::Mat(frame.height, frame.width, CV_8UC3, frame.rgb.data()), grey,
+                 cv::COLOR_RGB2GRAY);
+    std::vector<VertexFeature> features;
+    ASSERT_TRUE(front_end.Process(grey, &features).ok());
+    for (const VertexFeature& f : features) {
+      const double u = f.uv.x(), v = f.uv.y();
+      const auto it = world_point.find(f.id);
+      if (it == world_point.end()) {
+        const float z = frame.depth[static_cast<int>(v) * frame.width + static_cast<int>(u)];
+        if (z <= 0.f) continue;
+        world_point[f.id] = world_from_camera * Eigen::Vector3d((u - camera.cx) / camera.fx * z,
+                                                                (v - camera.cy) / camera.fy * z, z);
+        continue;
+      }
+      const Eigen::Vector3d p = world_from_camera.Inverse() * it->second;
+      const double error = std::hypot(camera.fx * p.x() / p.z() + camera.cx - u,
+                                      camera.fy * p.y() / p.z() + camera.cy - v);
+      ++checked;
+      within_1px += error <= 1.0;
+      within_2px += error <= 2.0;
+      far += error >= 10.0;
+    }
+  }
+  ASSERT_GT(checked, 10000);
+  // Measured on this walk: 76 % within 1 px and 95.6 % within 2 px (the difference of two
+  // keypoint positions: about 0.4 px each per axis, with heavier tails), none 10 px or more
+  // away (a wrong id, or a keypoint on a depth edge back-projected onto the other surface).
+  EXPECT_GE(within_1px, 0.6 * checked) << within_1px << " of " << checked;
+  EXPECT_GE(within_2px, 0.9 * checked) << within_2px << " of " << checked;
+  EXPECT_LE(far, checked / 1000) << far << " of " << checked;
 }
 
 TEST(OrbHeadlessTest, RefusesOptionsThatDoNotApplyToImages) {
