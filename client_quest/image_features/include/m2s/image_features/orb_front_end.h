@@ -4,7 +4,8 @@
 //
 // Each frame's ORB keypoints get ids in three steps:
 //  1. Frame to frame: a keypoint takes the id of a feature of the previous frame when that
-//     feature's predicted position (its last position plus its last image motion) lies within
+//     feature's predicted position (its last position plus its last image motion, or the
+//     median image motion of its frame for a feature not matched frame to frame) lies within
 //     `search_radius_px`, the Hamming distance of their descriptors is at most `max_hamming`,
 //     and the best distance is below `ratio` times the second best among the candidates. A
 //     previous feature claimed by several keypoints goes to the closest descriptor.
