@@ -3,12 +3,22 @@
 //   m2s_client [--mesh FILE --trajectory GT.tum] [--camera CAMERA.json | --width W --height H
 //              --fov-deg F] [--fps F] [--fast] [--on-device | --lcm-url URL]
 //              [--projector gpu|cpu] [--no-occlusion] [--noise-px S --outlier-ids P --dropout P
+<<<<<<< HEAD
 //              --seed N] [--key-file FILE [--encrypt]] [--map-group NAME] [--out DIR]
 //              [--method NAME [--method-config FILE.json]]
 //
 // --method NAME (on-device only): the in-process server's localisation method: vertex_slam
 // (default, the built-in SLAM) or a plug-in's name or path (docs/design/plugins.md), with its
 // options from --method-config. A plug-in cannot join a map group.
+=======
+//              --seed N] [--front-end vertex|orb [--orb-features N]] [--key-file FILE
+//              [--encrypt]] [--map-group NAME] [--out DIR]
+//
+// --front-end orb: each frame is rendered (the mesh's textures when it has them) and turned
+// into ORB features with track ids instead of projected vertices; metrics.json then reports
+// the render, extraction and matching times and the tracking time per frame (front end +
+// SLAM tracking). Needs EGL; the noise options do not apply.
+>>>>>>> ws-orb
 //
 // --map-group NAME: the session joins the server's map group NAME (collaborative SLAM: every
 // client of a group shares one map); metrics.json then reports merged_at_s.
@@ -59,6 +69,13 @@ int main(int argc, char** argv) {
   app.add_option("--outlier-ids", options.noise.wrong_id_fraction, "Fraction of wrong ids");
   app.add_option("--dropout", options.noise.dropout_probability, "Feature dropout probability");
   app.add_option("--seed", options.noise.seed, "Noise seed");
+  app.add_option("--front-end", options.front_end,
+                 "vertex (projected mesh vertices) or orb (ORB features of rendered images)")
+      ->check(CLI::IsMember({"vertex", "orb"}))
+      ->capture_default_str();
+  app.add_option("--orb-features", options.orb.num_features,
+                 "--front-end orb: at most N ORB features a frame")
+      ->capture_default_str();
   double duration_s = 0;
   app.add_option("--duration", duration_s, "Only the first S seconds of the trajectory");
   int budget = options.server.slam.feature_budget;
@@ -140,6 +157,12 @@ int main(int argc, char** argv) {
   options.progress = isatty(STDERR_FILENO) != 0;
   m2s::SetMinLogLevel(m2s::LogLevel::kWarning);
 
+  // ORB keypoints are not exact: the back end assumes their measured noise.
+  if (options.front_end == "orb") options.server.slam.pixel_sigma = m2s::headless::kOrbPixelSigma;
+  if (m2s::Status s = m2s::headless::CheckFrontEnd(options); !s) {
+    std::cerr << "m2s_client: " << s.message() << "\n";
+    return 2;
+  }
   auto result = m2s::headless::RunHeadless(options);
   if (!result) {
     std::cerr << "m2s_client: " << result.error() << "\n";

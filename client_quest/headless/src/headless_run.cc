@@ -14,6 +14,7 @@
 #include "m2s/common/scene.h"
 #include "m2s/common/trajectory.h"
 #include "m2s/gpu/projector_factory.h"
+#include "m2s/headless/orb_frame_source.h"
 #include "m2s/plugin/plugin_system.h"
 
 namespace m2s::headless {
@@ -41,7 +42,64 @@ Expected<std::unique_ptr<Projector>> CreateProjector(const HeadlessOptions& opti
   return MakeProjector(ProjectorKind::kCpu, scene, options.projector_options, nullptr);
 }
 
+// The frames of a run: the vertex front end (projector -> FrameSource) or the ORB one.
+struct FrameMaker {
+  std::unique_ptr<Projector> projector;
+  std::unique_ptr<client::FrameSource> vertex;
+  std::unique_ptr<OrbFrameSource> orb;
+
+  Expected<wire::FeatureFrame> Make(const Pose3& world_from_camera, int64_t capture_time_us,
+                                    uint64_t frame_index, reporting::FrontEndTime* time) {
+    if (orb) return orb->Make(world_from_camera, capture_time_us, time);
+    auto frame = vertex->Make(world_from_camera, capture_time_us, frame_index);
+    time->projection_ms = vertex->last_projection_ms();
+    return frame;
+  }
+};
+
+Expected<FrameMaker> CreateFrameMaker(const HeadlessOptions& options, const Scene& scene,
+                                      std::string* notice, std::string* projector_name) {
+  FrameMaker maker;
+  if (options.front_end == "orb") {
+    Expected<RenderMesh> mesh = options.mesh_path.empty()
+                                    ? Expected<RenderMesh>(MakeRenderMesh(scene))
+                                    : LoadRenderMesh(options.mesh_path);
+    if (!mesh) return mesh.status();
+    auto orb = OrbFrameSource::Create(*mesh, options.camera, options.orb);
+    if (!orb) return orb.status();
+    maker.orb = std::move(*orb);
+    *projector_name = "none";
+    return maker;
+  }
+  auto projector = CreateProjector(options, scene, notice, projector_name);
+  if (!projector) return projector.status();
+  maker.projector = std::move(*projector);
+  maker.vertex = std::make_unique<client::FrameSource>(
+      maker.projector.get(), options.camera, options.noise,
+      static_cast<uint32_t>(scene.num_vertices()), options.send_budget);
+  return maker;
+}
+
 }  // namespace
+
+Status CheckFrontEnd(const HeadlessOptions& options) {
+  if (options.front_end == "vertex") return Status::Ok();
+  if (options.front_end != "orb") {
+    return Status::Error("front end must be vertex or orb, not '" + options.front_end + "'");
+  }
+  if (options.noise.Enabled()) {
+    return Status::Error(
+        "the ORB front end extracts features from rendered images: the feature noise options "
+        "(pixel noise, wrong ids, dropout) apply to the vertex front end only");
+  }
+  const int server_budget = options.server.slam.feature_budget;
+  if (server_budget > 0 && options.orb.num_features > server_budget) {
+    return Status::Error("ORB features a frame (" + std::to_string(options.orb.num_features) +
+                         ") exceed the SLAM feature budget (" + std::to_string(server_budget) +
+                         "): raise the budget or lower the ORB feature count");
+  }
+  return options.orb.Check().Prefixed("ORB options: ");
+}
 
 Expected<HeadlessResult> RunHeadless(const HeadlessOptions& options) {
   if (!(options.fps > 0 && options.fps <= 10000))
@@ -50,6 +108,7 @@ Expected<HeadlessResult> RunHeadless(const HeadlessOptions& options) {
   if (Status s = options.noise.Check(); !s) return s.Prefixed("noise: ");
   if (Status s = options.projector_options.Check(); !s) return s.Prefixed("projector: ");
   if (options.send_budget < 0) return Status::Error("send_budget must be >= 0 (0: all)");
+  if (Status s = CheckFrontEnd(options); !s) return s;
 
   auto loaded_scene = LoadSceneOrDefault(options.mesh_path);
   if (!loaded_scene) return loaded_scene.status();
@@ -70,10 +129,8 @@ Expected<HeadlessResult> RunHeadless(const HeadlessOptions& options) {
 
   HeadlessResult result;
   std::string projector_name;
-  auto projector = CreateProjector(options, scene, &result.notice, &projector_name);
-  if (!projector) return projector.status();
-  client::FrameSource source(projector->get(), options.camera, options.noise,
-                             static_cast<uint32_t>(scene.num_vertices()), options.send_budget);
+  auto frame_maker = CreateFrameMaker(options, scene, &result.notice, &projector_name);
+  if (!frame_maker) return frame_maker.status();
 
   std::unique_ptr<client::Transport> transport;
   if (options.on_device) {
@@ -104,6 +161,8 @@ Expected<HeadlessResult> RunHeadless(const HeadlessOptions& options) {
   info.fast = options.fast;
   info.frames_total = static_cast<int64_t>(num_frames);
   info.render_map = options.render_map;
+  info.front_end = options.front_end;
+  info.ids_are_vertices = options.front_end == "vertex";
 
   const auto start = Clock::now();
   auto next_progress = start;
@@ -120,11 +179,18 @@ Expected<HeadlessResult> RunHeadless(const HeadlessOptions& options) {
       }
       std::this_thread::sleep_until(due);
     }
-    auto frame = source.Make(pose.world_from_camera, std::llround(pose.timestamp * 1e6), k);
-    if (!frame) return Status::Error("projection failed: " + frame.error());
+    reporting::FrontEndTime time;
+    auto frame =
+        frame_maker->Make(pose.world_from_camera, std::llround(pose.timestamp * 1e6), k, &time);
+    if (!frame) {
+      return Status::Error((frame_maker->orb ? "ORB front end failed: " : "projection failed: ") +
+                           frame.error());
+    }
     auto seq = session.Send(std::move(*frame));
     if (!seq) return seq.status();
     last_seq = *seq;
+    time.seq = *seq;
+    info.front_end_times.push_back(time);
     if (options.on_frame_sent) options.on_frame_sent(static_cast<int64_t>(k));
     if (options.fast && !session.WaitForPose(last_seq, options.pose_timeout_s) &&
         session.Counters().poses_received == 0) {
@@ -147,6 +213,7 @@ Expected<HeadlessResult> RunHeadless(const HeadlessOptions& options) {
     M2S_LOG(kWarning) << "no full map before the end";
   }
   info.wall_s = std::chrono::duration<double>(Clock::now() - start).count();
+  frame_maker->orb.reset();  // its GL context goes before the outputs make their own
   const std::vector<client::FrameRecord> records = session.Records();
   const client::MapSnapshot map = session.replica().Snapshot();
   result.counters = session.Counters();

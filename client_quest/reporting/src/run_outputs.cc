@@ -145,6 +145,42 @@ std::vector<SessionMetrics> SummariseSessions(const std::vector<client::FrameRec
   return sessions;
 }
 
+// The front-end figures of RunMetrics from the per-frame times (records[seq - 1]).
+void SummariseFrontEnd(const std::vector<client::FrameRecord>& records, const RunInfo& info,
+                       RunMetrics* m) {
+  m->front_end = info.front_end;
+  const std::vector<FrontEndTime>& times = info.front_end_times;
+  if (times.empty()) return;
+  std::vector<double> total, projection, render, extract, match, per_frame;
+  double tracked = 0, reidentified = 0, new_ids = 0;
+  for (const FrontEndTime& t : times) {
+    total.push_back(t.total_ms());
+    projection.push_back(t.projection_ms);
+    render.push_back(t.render_ms);
+    extract.push_back(t.extract_ms);
+    match.push_back(t.match_ms);
+    tracked += t.tracked;
+    reidentified += t.reidentified;
+    new_ids += t.new_ids;
+    const size_t index = static_cast<size_t>(t.seq - 1);
+    if (t.seq >= 1 && index < records.size() && records[index].answered) {
+      per_frame.push_back(t.total_ms() + records[index].tracking_ms);
+    }
+  }
+  m->front_end_ms_p50 = Percentile(total, 0.5);
+  m->front_end_ms_p95 = Percentile(total, 0.95);
+  m->projection_ms_p50 = Percentile(projection, 0.5);
+  m->render_ms_p50 = Percentile(render, 0.5);
+  m->extract_ms_p50 = Percentile(extract, 0.5);
+  m->match_ms_p50 = Percentile(match, 0.5);
+  m->time_per_frame_ms_p50 = Percentile(per_frame, 0.5);
+  m->time_per_frame_ms_p95 = Percentile(per_frame, 0.95);
+  const double n = static_cast<double>(times.size());
+  m->tracked_ids_per_frame = tracked / n;
+  m->reidentified_per_frame = reidentified / n;
+  m->new_ids_per_frame = new_ids / n;
+}
+
 }  // namespace
 
 std::vector<client::FrameRecord> TrackedFrames(const std::vector<client::FrameRecord>& records,
@@ -206,6 +242,7 @@ Expected<RunMetrics> WriteRunOutputs(const std::string& out_dir,
   m.tracking_ms_p95 = Percentile(tracking_ms, 0.95);
   m.latency_ms_p50 = Percentile(latency_ms, 0.5);
   m.latency_ms_p99 = Percentile(latency_ms, 0.99);
+  SummariseFrontEnd(records, info, &m);
   m.bytes_per_feature = features > 0 ? static_cast<double>(feature_bytes) / features : 0.0;
   m.features_per_frame = records.empty() ? 0.0 : static_cast<double>(features) / records.size();
   m.keyframes = static_cast<int64_t>(map.keyframes.size());
@@ -264,7 +301,7 @@ Expected<RunMetrics> WriteRunOutputs(const std::string& out_dir,
     if (session.id != map.session_id || !session.world_from_estimate) continue;
     // The map is in the frame of its session.
     world_from_estimate = *session.world_from_estimate;
-    if (scene && !map.points.empty()) {
+    if (scene && info.ids_are_vertices && !map.points.empty()) {
       std::vector<MapPoint> points;
       for (size_t i = 0; i < map.points.size(); ++i) {
         points.push_back({map.point_ids[i], map.points[i].cast<double>()});
@@ -315,6 +352,18 @@ Expected<RunMetrics> WriteRunOutputs(const std::string& out_dir,
   j["tracking_ms_p95"] = m.tracking_ms_p95;
   j["latency_ms_p50"] = m.latency_ms_p50;
   j["latency_ms_p99"] = m.latency_ms_p99;
+  j["front_end"] = m.front_end;
+  j["front_end_ms_p50"] = m.front_end_ms_p50;
+  j["front_end_ms_p95"] = m.front_end_ms_p95;
+  j["projection_ms_p50"] = m.projection_ms_p50;
+  j["render_ms_p50"] = m.render_ms_p50;
+  j["extract_ms_p50"] = m.extract_ms_p50;
+  j["match_ms_p50"] = m.match_ms_p50;
+  j["time_per_frame_ms_p50"] = m.time_per_frame_ms_p50;
+  j["time_per_frame_ms_p95"] = m.time_per_frame_ms_p95;
+  j["tracked_ids_per_frame"] = m.tracked_ids_per_frame;
+  j["reidentified_per_frame"] = m.reidentified_per_frame;
+  j["new_ids_per_frame"] = m.new_ids_per_frame;
   j["bytes_per_feature"] = m.bytes_per_feature;
   j["features_per_frame"] = m.features_per_frame;
   j["keyframes"] = m.keyframes;
@@ -355,8 +404,12 @@ std::string SummaryLine(const RunMetrics& m, const std::string& out_dir) {
        << " mm, map error " << m.map_rmse * 1e3 << " mm (p95 " << m.map_p95 * 1e3 << " mm), "
        << m.keyframes << " keyframes, " << m.map_points << " points, latency p50 "
        << std::setprecision(2) << m.latency_ms_p50 << " ms p99 " << m.latency_ms_p99
-       << " ms, tracking p50 " << m.tracking_ms_p50 << " ms, " << m.bytes_per_feature
-       << " B/feature, " << m.projector << " projector -> " << out_dir;
+       << " ms, tracking p50 " << m.tracking_ms_p50 << " ms, ";
+  if (m.time_per_frame_ms_p50 > 0) {
+    line << "tracking time per frame p50 " << m.time_per_frame_ms_p50 << " ms (" << m.front_end
+         << " front end " << m.front_end_ms_p50 << " ms), ";
+  }
+  line << m.bytes_per_feature << " B/feature, " << m.projector << " projector -> " << out_dir;
   return line.str();
 }
 

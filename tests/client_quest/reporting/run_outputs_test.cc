@@ -1,6 +1,6 @@
 // metrics.json's map group keys: map_group, servers_seen and merged_at_s (seconds from the
-// first frame sent to the first tracked pose in the group's map, map_id 0), from synthetic
-// frame records with known send times and latencies.
+// first frame sent to the first tracked pose in the group's map, map_id 0), and the front
+// end's times, from synthetic frame records with known send times, latencies and times.
 #include "m2s/reporting/run_outputs.h"
 
 #include <unistd.h>
@@ -76,6 +76,44 @@ TEST(RunOutputsTest, MetricsJsonHoldsTheMapGroupKeys) {
   EXPECT_EQ(grouped.at("map_group"), "room-a");
   EXPECT_EQ(grouped.at("servers_seen"), 2);
   EXPECT_NEAR(grouped.at("merged_at_s").get<double>(), 0.405, 1e-12);
+  fs::remove_all(dir);
+}
+
+TEST(RunOutputsTest, TrackingTimePerFrameAddsTheFrontEndToTheTracking) {
+  const fs::path dir =
+      fs::temp_directory_path() / ("m2s_run_outputs_front_end_" + std::to_string(::getpid()));
+  std::vector<client::FrameRecord> records = Records();
+  RunInfo info;
+  info.render_map = false;
+  info.front_end = "orb";
+  info.ids_are_vertices = false;
+  // Frame k: tracking k ms; front end 10 + k ms (render 4, extract 3 + k, match 3). Frame 9 is
+  // never answered: its front end counts, its time per frame does not.
+  for (int k = 0; k < 10; ++k) {
+    records[k].tracking_ms = static_cast<float>(k);
+    FrontEndTime t;
+    t.seq = records[k].seq;
+    t.render_ms = 4.0;
+    t.extract_ms = 3.0 + k;
+    t.match_ms = 3.0;
+    t.tracked = 2 * k;
+    info.front_end_times.push_back(t);
+  }
+  records[9].answered = false;
+  auto m = WriteRunOutputs(dir.string(), records, client::MapSnapshot(), nullptr, Camera(), info);
+  ASSERT_TRUE(m.ok()) << m.error();
+  EXPECT_EQ(m->front_end, "orb");
+  EXPECT_DOUBLE_EQ(m->render_ms_p50, 4.0);
+  EXPECT_DOUBLE_EQ(m->extract_ms_p50, 7.5);          // median of 3..12
+  EXPECT_DOUBLE_EQ(m->front_end_ms_p50, 14.5);       // median of 10..19
+  EXPECT_DOUBLE_EQ(m->time_per_frame_ms_p50, 18.0);  // median of 10 + 2k, k = 0..8
+  EXPECT_DOUBLE_EQ(m->tracked_ids_per_frame, 9.0);
+  EXPECT_DOUBLE_EQ(m->projection_ms_p50, 0.0);
+  std::ifstream in(dir / "metrics.json");
+  const nlohmann::json j = nlohmann::json::parse(in);
+  EXPECT_EQ(j.at("front_end"), "orb");
+  EXPECT_DOUBLE_EQ(j.at("time_per_frame_ms_p50").get<double>(), 18.0);
+  EXPECT_DOUBLE_EQ(j.at("match_ms_p50").get<double>(), 3.0);
   fs::remove_all(dir);
 }
 

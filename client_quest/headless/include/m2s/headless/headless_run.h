@@ -1,9 +1,10 @@
 // The headless client's run: a scene and a trajectory resampled at `fps` become frames
-// (projector -> noise -> codec), sent over a transport (on-device or LCM) in real time (frames
-// the client cannot produce in time are skipped; the server's latest-wins queue skips the
-// frames SLAM cannot take) or, with `fast`, one frame at a time waiting for each pose
-// (deterministic). The outputs are written by reporting::WriteRunOutputs. A run that no server ever
-// answered (none listening, the server full, or every answer refused) is an error.
+// (projector -> noise -> codec with the vertex front end; rendered image -> ORB features with
+// track ids -> codec with the ORB front end, OrbFrameSource), sent over a transport (on-device or
+// LCM) in real time (frames the client cannot produce in time are skipped; the server's latest-wins
+// queue skips the frames SLAM cannot take) or, with `fast`, one frame at a time waiting for each
+// pose (deterministic). The outputs are written by reporting::WriteRunOutputs. A run that no server
+// ever answered (none listening, the server full, or every answer refused) is an error.
 //
 //   HeadlessOptions options;            // default scene, default trajectory, on-device
 //   options.fast = true;
@@ -17,10 +18,16 @@
 #include "m2s/common/bus_auth.h"
 #include "m2s/common/feature_noise.h"
 #include "m2s/common/projector.h"
+#include "m2s/image_features/orb_front_end.h"
 #include "m2s/reporting/run_outputs.h"
 #include "m2s/server_app/session_manager.h"
 
 namespace m2s::headless {
+
+// The pixel noise the SLAM back end should assume for ORB features (slam::Options::pixel_sigma,
+// 1 px by default): ORB keypoints of the rendered textured room are located to about 0.5 px
+// (docs/design/orb_front_end.md); 0.7 keeps a margin. m2s_client sets it with --front-end orb.
+inline constexpr double kOrbPixelSigma = 0.7;
 
 struct HeadlessOptions {
   std::string mesh_path;        // empty: MakeDefaultScene()
@@ -34,6 +41,11 @@ struct HeadlessOptions {
   std::string projector = "gpu";  // "gpu" (CPU fallback when EGL fails) or "cpu"
   ProjectorOptions projector_options = ProjectorOptions::Occluding();
   FeatureNoiseOptions noise;
+  // "vertex": projected mesh vertices, ids = vertex ids. "orb": the scene rendered (textures
+  // when the mesh has them; needs EGL), ORB features with track ids (orb); the noise options
+  // must then be off, and neither the projector nor send_budget is used.
+  std::string front_end = "vertex";
+  image_features::OrbFrontEnd::Options orb;
   // At most this many features a frame are sent, the lowest-ranked ids (0: all); by default
   // the SLAM feature budget, so the server gets exactly the subset it would use.
   int send_budget = slam::Options().feature_budget;
@@ -69,5 +81,9 @@ struct HeadlessResult {
 };
 
 Expected<HeadlessResult> RunHeadless(const HeadlessOptions& options);
+
+// The front-end options alone (RunHeadless checks them too): an unknown front end, noise
+// options or a feature count over the SLAM budget with the ORB front end, bad ORB options.
+Status CheckFrontEnd(const HeadlessOptions& options);
 
 }  // namespace m2s::headless

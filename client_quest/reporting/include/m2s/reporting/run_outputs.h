@@ -26,6 +26,19 @@
 
 namespace m2s::reporting {
 
+// The client's front end on one sent frame (wall clock, milliseconds): projection for vertex
+// features; rendering, extraction and matching for an image front end.
+struct FrontEndTime {
+  int64_t seq = 0;             // the frame's FrameRecord::seq
+  double projection_ms = 0.0;  // vertex: projection, noise and send budget
+  double render_ms = 0.0;      // image: rendering the frame
+  double extract_ms = 0.0;     // image: grey conversion, keypoints and descriptors
+  double match_ms = 0.0;       // image: track ids (frame to frame, re-identification)
+  // Image: keypoints whose id came from the previous frame, from the map, or was new.
+  int tracked = 0, reidentified = 0, new_ids = 0;
+  double total_ms() const { return projection_ms + render_ms + extract_ms + match_ms; }
+};
+
 struct RunInfo {
   std::string projector = "cpu";
   std::string transport = "on-device";
@@ -39,9 +52,14 @@ struct RunInfo {
   int64_t bus_refused = 0;              // refused by the bus checks (forged, replayed, stale)
   int64_t foreign_server_messages = 0;  // for our session from another server instance
   double wall_s = 0.0;
-  bool render_map = true;    // write map.png
-  std::string map_group;     // the map group the client joined (empty: none)
-  int64_t servers_seen = 0;  // distinct server instances that acknowledged the client
+  bool render_map = true;            // write map.png
+  std::string map_group;             // the map group the client joined (empty: none)
+  int64_t servers_seen = 0;          // distinct server instances that acknowledged the client
+  std::string front_end = "vertex";  // "vertex" or "orb"
+  // Feature ids are scene vertex ids (false for an image front end's track ids: then there is
+  // no map error, map_rmse stays -1).
+  bool ids_are_vertices = true;
+  std::vector<FrontEndTime> front_end_times;  // per sent frame; empty when not measured
 };
 
 // One client session of a run (a run has several when the server ended or stopped answering
@@ -77,6 +95,14 @@ struct RunMetrics {
   double map_p95 = -1.0;
   double tracking_ms_p50 = 0.0, tracking_ms_p95 = 0.0;
   double latency_ms_p50 = 0.0, latency_ms_p99 = 0.0;
+  // The front end per sent frame (FrontEndTime; 0 when not measured), and the tracking time
+  // per frame: front end + the back end's tracking_ms, over the processed frames.
+  std::string front_end = "vertex";
+  double front_end_ms_p50 = 0.0, front_end_ms_p95 = 0.0;
+  double projection_ms_p50 = 0.0, render_ms_p50 = 0.0, extract_ms_p50 = 0.0, match_ms_p50 = 0.0;
+  double time_per_frame_ms_p50 = 0.0, time_per_frame_ms_p95 = 0.0;
+  // Image front end, per sent frame: keypoints with the previous frame's id, the map's, a new.
+  double tracked_ids_per_frame = 0.0, reidentified_per_frame = 0.0, new_ids_per_frame = 0.0;
   double bytes_per_feature = 0.0;
   double features_per_frame = 0.0;
   int64_t keyframes = 0;
@@ -102,7 +128,8 @@ Expected<RunMetrics> WriteRunOutputs(const std::string& out_dir,
 // (the map group's map); nullopt when there is none.
 std::optional<double> FirstPoseInGroupMapSeconds(const std::vector<client::FrameRecord>& records);
 
-// One line: frames, ATE, map error, latency, tracking time, output folder.
+// One line: frames, ATE, map error, latency, tracking time (and with front-end times, the
+// tracking time per frame), output folder.
 std::string SummaryLine(const RunMetrics& metrics, const std::string& out_dir);
 
 // The trajectory (world_from_camera at capture times) of the tracked frames of `session_id`.
