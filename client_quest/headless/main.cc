@@ -3,22 +3,18 @@
 //   m2s_client [--mesh FILE --trajectory GT.tum] [--camera CAMERA.json | --width W --height H
 //              --fov-deg F] [--fps F] [--fast] [--on-device | --lcm-url URL]
 //              [--projector gpu|cpu] [--no-occlusion] [--noise-px S --outlier-ids P --dropout P
-<<<<<<< HEAD
-//              --seed N] [--key-file FILE [--encrypt]] [--map-group NAME] [--out DIR]
-//              [--method NAME [--method-config FILE.json]]
-//
-// --method NAME (on-device only): the in-process server's localisation method: vertex_slam
-// (default, the built-in SLAM) or a plug-in's name or path (docs/design/plugins.md), with its
-// options from --method-config. A plug-in cannot join a map group.
-=======
 //              --seed N] [--front-end vertex|orb [--orb-features N]] [--key-file FILE
 //              [--encrypt]] [--map-group NAME] [--out DIR]
+//              [--method NAME [--method-config FILE.json]]
 //
 // --front-end orb: each frame is rendered (the mesh's textures when it has them) and turned
 // into ORB features with track ids instead of projected vertices; metrics.json then reports
 // the render, extraction and matching times and the tracking time per frame (front end +
 // SLAM tracking). Needs EGL; the noise options do not apply.
->>>>>>> ws-orb
+//
+// --method NAME (on-device only): the in-process server's localisation method: vertex_slam
+// (default, the built-in SLAM) or a plug-in's name or path (docs/design/plugins.md), with its
+// options from --method-config. A plug-in cannot join a map group.
 //
 // --map-group NAME: the session joins the server's map group NAME (collaborative SLAM: every
 // client of a group shares one map); metrics.json then reports merged_at_s.

@@ -170,7 +170,8 @@ TEST(WorkbenchResults, ReadsARunFolderAndEvaluatesItsTrajectory) {
   ASSERT_TRUE(WriteTum((dir / "trajectory.tum").string(), *Trajectory::FromPoses(estimate)));
   std::ofstream(dir / "metrics.json") << R"({"frames_total": 40, "frames_tracked": 30,
       "frames_lost": 4, "frames_in_unmerged_maps": 1, "ate_rmse": 0.5, "tracking_ms_p50": 2.0,
-      "tracking_ms_p95": 3.0, "front_end_ms_p50": 5.0, "map_median": 0.001, "map_p95": null,
+      "tracking_ms_p95": 3.0, "front_end_ms_p50": 5.0, "time_per_frame_ms_p50": 7.5,
+      "time_per_frame_ms_p95": 9.0, "map_median": 0.001, "map_p95": null,
       "keyframes": 7, "wall_s": 1.5})";
   const Cell cell{0, 0, 30, 0, 0};
   Expected<CellResult> row = ReadCellResult(cell, dir.string());
@@ -178,7 +179,9 @@ TEST(WorkbenchResults, ReadsARunFolderAndEvaluatesItsTrajectory) {
   EXPECT_EQ(row->frames_total, 40);
   EXPECT_EQ(row->frames_lost, 4);
   EXPECT_EQ(row->frames_in_unmerged_maps, 1);
-  EXPECT_DOUBLE_EQ(row->time_ms_p50, 7.0);  // back end + front end
+  EXPECT_DOUBLE_EQ(row->time_ms_p50, 7.5);  // front end + back end, per frame
+  EXPECT_DOUBLE_EQ(row->time_ms_p95, 9.0);
+  EXPECT_DOUBLE_EQ(row->front_end_ms_p50, 5.0);
   EXPECT_DOUBLE_EQ(row->map_p95, -1.0);     // null: no value
   EXPECT_EQ(row->keyframes, 7);
   // Recomputed from the trajectories (written with full precision), not metrics.json's 0.5:
