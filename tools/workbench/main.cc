@@ -63,9 +63,13 @@ int main(int argc, char** argv) {
                                    size_t total) {
     std::fprintf(stderr, "[%zu/%zu] %s: %s", done, total, row.cell.Name(*config).c_str(),
                  row.status.c_str());
-    if (row.ok()) {
+    if (row.ok() && row.ate_rmse >= 0) {
       std::fprintf(stderr, ", ATE %.3f mm, lost %.1f %%, %.2f ms/frame\n", row.ate_rmse * 1e3,
                    row.lost_percent(), row.time_ms_p50);
+    } else if (row.ok()) {
+      std::fprintf(stderr, ", %lld of %lld frames tracked (no ATE), %.2f ms/frame\n",
+                   static_cast<long long>(row.frames_tracked),
+                   static_cast<long long>(row.frames_total), row.time_ms_p50);
     } else {
       std::fprintf(stderr, " (%s)\n", row.message.c_str());
     }

@@ -5,7 +5,8 @@ Debian packages (assimp-testmodels, glmark2-data).
 The room has the footprint of the default scene (6 m x 5 m x 2.7 m, centred on the origin in x
 and y, floor at z = 0, z up), so the client's default trajectory walks through it. Walls, floor
 and ceiling are grids of 0.25 m quads: the vertex front end gets vertices to project, the image
-front ends get textures to describe (1 m per texture repeat). Three posters hang on the walls.
+front ends get textures to describe: three walls carry murals (one photograph each, floor to
+ceiling), the fourth is plastered with a poster on it; floor and ceiling repeat every metre.
 
     tools/workbench/make_textured_room.py OUT_DIR   # writes OUT_DIR/room.obj, room.mtl
 """
@@ -14,14 +15,15 @@ import sys
 
 TEXTURES = {
     "wall": "/usr/share/assimp/models/3DS/CWALL02.jpg",
+    "mural1": "/usr/share/glmark2/textures/nasa1.png",
+    "mural2": "/usr/share/glmark2/textures/nasa2.png",
+    "mural3": "/usr/share/glmark2/textures/nasa3.png",
     "floor": "/usr/share/glmark2/textures/terrain-backgrounddetailed6.jpg",
     "ceiling": "/usr/share/glmark2/textures/crate-base.png",
-    "poster1": "/usr/share/glmark2/textures/nasa1.png",
-    "poster2": "/usr/share/glmark2/textures/nasa2.png",
-    "poster3": "/usr/share/glmark2/textures/nasa3.png",
 }
 SIZE_X, SIZE_Y, SIZE_Z = 6.0, 5.0, 2.7
 CELL = 0.25  # quad size, metres
+MURAL_M = 2.7  # metres per texture repeat of a mural (one photograph floor to ceiling)
 
 
 class Obj:
@@ -68,16 +70,15 @@ def main():
     x0, y0 = -SIZE_X / 2, -SIZE_Y / 2
     obj = Obj()
     # Inward-facing walls (u along the wall, v up), floor (facing up), ceiling (facing down).
-    obj.grid("wall", (-x0, y0, 0), (-1, 0, 0), (0, 0, 1), SIZE_X, SIZE_Z, 1.0)   # y = y0
-    obj.grid("wall", (x0, -y0, 0), (1, 0, 0), (0, 0, 1), SIZE_X, SIZE_Z, 1.0)    # y = -y0
-    obj.grid("wall", (-x0, -y0, 0), (0, -1, 0), (0, 0, 1), SIZE_Y, SIZE_Z, 1.0)  # x = -x0
-    obj.grid("wall", (x0, y0, 0), (0, 1, 0), (0, 0, 1), SIZE_Y, SIZE_Z, 1.0)     # x = x0
+    # Three walls with murals (photographs), one plain plastered wall.
+    obj.grid("mural1", (-x0, y0, 0), (-1, 0, 0), (0, 0, 1), SIZE_X, SIZE_Z, MURAL_M)  # y = y0
+    obj.grid("mural2", (x0, -y0, 0), (1, 0, 0), (0, 0, 1), SIZE_X, SIZE_Z, MURAL_M)  # y = -y0
+    obj.grid("mural3", (-x0, -y0, 0), (0, -1, 0), (0, 0, 1), SIZE_Y, SIZE_Z, MURAL_M)  # x = -x0
+    obj.grid("wall", (x0, y0, 0), (0, 1, 0), (0, 0, 1), SIZE_Y, SIZE_Z, 1.0)  # x = x0
     obj.grid("floor", (x0, y0, 0), (1, 0, 0), (0, 1, 0), SIZE_X, SIZE_Y, 1.0)
     obj.grid("ceiling", (x0, -y0, SIZE_Z), (1, 0, 0), (0, -1, 0), SIZE_X, SIZE_Y, 1.0)
-    # Posters 2 cm off three walls, one texture repeat over the whole poster.
-    obj.grid("poster1", (1.0, y0 + 0.02, 0.9), (-1, 0, 0), (0, 0, 1), 1.5, 1.0, 1.5)
-    obj.grid("poster2", (-x0 - 0.02, 1.0, 0.9), (0, -1, 0), (0, 0, 1), 1.5, 1.0, 1.5)
-    obj.grid("poster3", (-1.0, -y0 - 0.02, 0.9), (1, 0, 0), (0, 0, 1), 1.5, 1.0, 1.5)
+    # A poster 2 cm off the plain wall.
+    obj.grid("mural1", (x0 + 0.02, -1.0, 0.9), (0, 1, 0), (0, 0, 1), 1.5, 1.0, 1.5)
     with open(os.path.join(out, "room.obj"), "w") as f:
         f.write("\n".join(obj.lines) + "\n")
     with open(os.path.join(out, "room.mtl"), "w") as f:
