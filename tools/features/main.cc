@@ -4,6 +4,7 @@
 //
 //   m2s_features --mesh room.obj --trajectory gt.tum --index 10 --out features.csv
 //   m2s_features --default-scene --time 12.5 --occlusion --noise-sigma 0.5 --out f.csv
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -107,11 +108,18 @@ Status WriteCsv(const std::string& path, const Scene& scene,
   std::FILE* file = path == "-" ? stdout : std::fopen(path.c_str(), "w");
   if (file == nullptr) return Status::Error("cannot write " + path);
   std::fputs("id,u,v,depth,x,y,z\n", file);
+  // As printf's %.9g (every float with enough digits to be read back exactly), through
+  // std::to_chars: several times faster, which matters for views of millions of vertices.
+  std::vector<char> line(256);
   for (const ProjectedVertex& f : features) {
     const Eigen::Vector3f& p = scene.positions[f.id];
-    // %.9g: every float written with enough digits to be read back exactly.
-    std::fprintf(file, "%u,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g\n", f.id, f.u, f.v, f.depth, p.x(), p.y(),
-                 p.z());
+    char* out = std::to_chars(line.data(), line.data() + line.size(), f.id).ptr;
+    for (float value : {f.u, f.v, f.depth, p.x(), p.y(), p.z()}) {
+      *out++ = ',';
+      out = std::to_chars(out, line.data() + line.size(), value, std::chars_format::general, 9).ptr;
+    }
+    *out++ = '\n';
+    std::fwrite(line.data(), 1, static_cast<size_t>(out - line.data()), file);
   }
   const bool ok = std::ferror(file) == 0;
   if (file != stdout && std::fclose(file) != 0) return Status::Error("cannot write " + path);

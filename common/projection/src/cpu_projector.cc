@@ -308,13 +308,16 @@ Expected<std::unique_ptr<CpuProjector>> CpuProjector::Create(const Scene& scene,
     impl->triangle_groups = internal::MakeTriangleGroups(
         impl->triangles, impl->x.data(), impl->y.data(), impl->z.data(), kTriangleGroupSize);
     impl->tri_ref_begin.push_back(0);
-    for (const internal::CullGroup& group : impl->triangle_groups) {
-      std::vector<uint32_t> refs;
-      for (size_t i = 3 * size_t{group.begin}; i < 3 * size_t{group.end}; ++i)
-        refs.push_back(static_cast<uint32_t>(impl->triangles[i] / kVertexGroupSize));
-      std::sort(refs.begin(), refs.end());
-      refs.erase(std::unique(refs.begin(), refs.end()), refs.end());
-      impl->tri_refs.insert(impl->tri_refs.end(), refs.begin(), refs.end());
+    // The vertex groups each triangle group uses (marks, not a sort: 12288 corners a group).
+    std::vector<uint32_t> last_seen(impl->vertex_groups.size(), ~uint32_t{0});
+    for (uint32_t t = 0; t < impl->triangle_groups.size(); ++t) {
+      const internal::CullGroup& group = impl->triangle_groups[t];
+      for (size_t i = 3 * size_t{group.begin}; i < 3 * size_t{group.end}; ++i) {
+        const auto g = static_cast<uint32_t>(impl->triangles[i] / kVertexGroupSize);
+        if (last_seen[g] == t) continue;
+        last_seen[g] = t;
+        impl->tri_refs.push_back(g);
+      }
       impl->tri_ref_begin.push_back(static_cast<uint32_t>(impl->tri_refs.size()));
     }
     impl->all_u.resize(n);
