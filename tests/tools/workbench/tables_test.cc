@@ -182,7 +182,7 @@ TEST(WorkbenchResults, ReadsARunFolderAndEvaluatesItsTrajectory) {
   EXPECT_DOUBLE_EQ(row->time_ms_p50, 7.5);  // front end + back end, per frame
   EXPECT_DOUBLE_EQ(row->time_ms_p95, 9.0);
   EXPECT_DOUBLE_EQ(row->front_end_ms_p50, 5.0);
-  EXPECT_DOUBLE_EQ(row->map_p95, -1.0);     // null: no value
+  EXPECT_DOUBLE_EQ(row->map_p95, -1.0);  // null: no value
   EXPECT_EQ(row->keyframes, 7);
   // Recomputed from the trajectories (written with full precision), not metrics.json's 0.5:
   EXPECT_LT(row->ate_rmse, 1e-9);
