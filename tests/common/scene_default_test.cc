@@ -66,7 +66,7 @@ TEST(DefaultScene, EveryPoseOfTheDefaultTrajectorySeesHundredsOfVertices) {
   const Scene scene = MakeDefaultScene();
   const Trajectory trajectory = DefaultTrajectory();
   const Camera camera = Camera::FromHorizontalFov(640, 480, 90.0);
-  for (size_t i = 0; i < trajectory.size(); i += 15) {
+  for (size_t i = 0; i < trajectory.size(); i += 45) {
     const Pose3 camera_from_world = trajectory[i].world_from_camera.Inverse();
     int visible = 0;
     for (const auto& p : scene.positions) {
