@@ -216,5 +216,22 @@ TEST(Trajectory, FromPosesSortsAndRejectsNonFinite) {
                    .ok());
 }
 
+TEST_F(TrajectoryTest, LoadTrajectoryOrDefaultReadsTheFileOrTakesTheDefaultWalk) {
+  const Trajectory original = MakeTrajectory(5, 10.0, 0.1);
+  ASSERT_TRUE(WriteTum(Path("b.tum"), original).ok());
+  const Expected<Trajectory> read = LoadTrajectoryOrDefault(Path("b.tum"));
+  ASSERT_TRUE(read.ok()) << read.error();
+  ASSERT_EQ(read->size(), 5u);
+  EXPECT_EQ((*read)[4].timestamp, original[4].timestamp);
+  ExpectError(LoadTrajectoryOrDefault(Path("missing.tum")), "missing.tum");
+
+  const Expected<Trajectory> walk = LoadTrajectoryOrDefault("");
+  ASSERT_TRUE(walk.ok()) << walk.error();
+  const Trajectory reference = DefaultTrajectory();
+  ASSERT_EQ(walk->size(), reference.size());
+  EXPECT_EQ((*walk)[walk->size() - 1].world_from_camera.translation(),
+            reference[reference.size() - 1].world_from_camera.translation());
+}
+
 }  // namespace
 }  // namespace m2s

@@ -47,14 +47,9 @@ struct Args {
 // The frames to render: the trajectory's poses, or its resampling at --fps, at most
 // --max-frames of them.
 Expected<Trajectory> FrameTimes(const Args& args) {
-  Trajectory trajectory;
-  if (args.trajectory.empty()) {
-    trajectory = DefaultTrajectory();
-  } else {
-    Expected<Trajectory> read = ReadTum(args.trajectory);
-    if (!read) return read.status();
-    trajectory = std::move(*read);
-  }
+  Expected<Trajectory> loaded = LoadTrajectoryOrDefault(args.trajectory);
+  if (!loaded) return loaded.status();
+  Trajectory trajectory = std::move(*loaded);
   if (trajectory.empty()) {
     return Expected<Trajectory>::Error("trajectory '" + args.trajectory + "' has no poses");
   }

@@ -139,15 +139,9 @@ Status Run(const Args& args) {
   Expected<Scene> loaded_scene = LoadSceneOrDefault(use_default ? std::string() : args.mesh);
   if (!loaded_scene) return loaded_scene.status();
   Scene scene = std::move(*loaded_scene);
-  Trajectory trajectory;
-  if (args.trajectory.empty()) {
-    trajectory = DefaultTrajectory();
-  } else {
-    Expected<Trajectory> read = ReadTum(args.trajectory);
-    if (!read) return read.status();
-    trajectory = std::move(*read);
-  }
-  Expected<Frame> frame = SelectFrame(trajectory, args);
+  Expected<Trajectory> trajectory = LoadTrajectoryOrDefault(args.trajectory);
+  if (!trajectory) return trajectory.status();
+  Expected<Frame> frame = SelectFrame(*trajectory, args);
   if (!frame) return frame.status();
   Expected<Camera> camera = MakeCamera(args);
   if (!camera) return camera.status();

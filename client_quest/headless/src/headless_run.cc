@@ -113,15 +113,9 @@ Expected<HeadlessResult> RunHeadless(const HeadlessOptions& options) {
   auto loaded_scene = LoadSceneOrDefault(options.mesh_path);
   if (!loaded_scene) return loaded_scene.status();
   Scene scene = std::move(*loaded_scene);
-  Trajectory trajectory;
-  if (options.trajectory_path.empty()) {
-    trajectory = DefaultTrajectory();
-  } else {
-    auto read = ReadTum(options.trajectory_path);
-    if (!read) return read.status();
-    trajectory = std::move(*read);
-  }
-  auto resampled = trajectory.Resample(options.fps);
+  Expected<Trajectory> trajectory = LoadTrajectoryOrDefault(options.trajectory_path);
+  if (!trajectory) return trajectory.status();
+  auto resampled = trajectory->Resample(options.fps);
   if (!resampled) return resampled.status();
   const size_t num_frames = options.max_frames > 0
                                 ? std::min<size_t>(resampled->size(), options.max_frames)

@@ -188,4 +188,9 @@ Trajectory DefaultTrajectory() {
   return std::move(trajectory).value();
 }
 
+Expected<Trajectory> LoadTrajectoryOrDefault(const std::string& path) {
+  if (path.empty()) return DefaultTrajectory();
+  return ReadTum(path);
+}
+
 }  // namespace m2s

@@ -134,4 +134,8 @@ HeadMotionOptions DefaultHeadMotionOptions();
 // to a wall. Deterministic.
 Trajectory DefaultTrajectory();
 
+// The TUM file at `path`, or DefaultTrajectory() when `path` is empty (the command-line tools'
+// "--trajectory FILE, else the default walk").
+Expected<Trajectory> LoadTrajectoryOrDefault(const std::string& path);
+
 }  // namespace m2s
