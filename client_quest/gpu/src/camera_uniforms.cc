@@ -1,6 +1,6 @@
-#include "camera_uniforms.h"
+#include "m2s/gpu/camera_uniforms.h"
 
-namespace m2s::internal {
+namespace m2s {
 
 CameraUniforms MakeCameraUniforms(const Pose3& world_from_camera, const Camera& camera) {
   CameraUniforms u;
@@ -26,4 +26,20 @@ CameraUniforms MakeCameraUniforms(const Pose3& world_from_camera, const Camera& 
   return u;
 }
 
-}  // namespace m2s::internal
+CameraUniformLocations CameraUniformLocations::Find(GLuint program) {
+  CameraUniformLocations where;
+  where.rotation_ = glGetUniformLocation(program, "u_rotation");
+  where.center_hi_ = glGetUniformLocation(program, "u_center_hi");
+  where.center_lo_ = glGetUniformLocation(program, "u_center_lo");
+  where.projection_ = glGetUniformLocation(program, "u_projection");
+  return where;
+}
+
+void CameraUniformLocations::Set(const CameraUniforms& uniforms) const {
+  glUniformMatrix3fv(rotation_, 1, GL_FALSE, uniforms.rotation.data());
+  glUniform3fv(center_hi_, 1, uniforms.center_hi.data());
+  glUniform3fv(center_lo_, 1, uniforms.center_lo.data());
+  glUniformMatrix4fv(projection_, 1, GL_FALSE, uniforms.projection.data());
+}
+
+}  // namespace m2s

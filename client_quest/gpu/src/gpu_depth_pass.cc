@@ -2,22 +2,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <string>
 
 namespace m2s {
 namespace {
 
-constexpr const char* kVertexShader = R"(#version 310 es
+constexpr const char* kVertexShaderBody = R"(
 layout(location = 0) in vec3 a_position;
-uniform mat3 u_rotation;   // camera_from_world
-uniform vec3 u_center_hi;  // camera centre in world, split in two floats
-uniform vec3 u_center_lo;
-uniform mat4 u_projection; // y-flipped Camera::GlProjection()
-void main() {
-  // The paper's chain: clip = P V M p with V = GlFromCv * camera_from_world (M = identity),
-  // evaluated camera-centred for float precision.
-  vec3 x_camera = u_rotation * ((a_position - u_center_hi) - u_center_lo);
-  gl_Position = u_projection * vec4(x_camera.x, -x_camera.y, -x_camera.z, 1.0);
-}
+void main() { gl_Position = ClipFromCamera(CameraFromWorld(a_position)); }
 )";
 
 constexpr const char* kFragmentShader = R"(#version 310 es
@@ -76,15 +68,14 @@ int OcclusionBufferSize(int image_size, double scale) {
 Expected<std::unique_ptr<GpuDepthPass>> GpuDepthPass::Create(
     GLuint positions, const std::vector<uint32_t>& triangles) {
   std::unique_ptr<GpuDepthPass> pass(new GpuDepthPass());
+  const std::string vertex_shader =
+      std::string("#version 310 es\n") + kCameraGlsl + kVertexShaderBody;
   Expected<GlProgram> program =
-      CompileProgram({{GL_VERTEX_SHADER, kVertexShader}, {GL_FRAGMENT_SHADER, kFragmentShader}});
+      CompileProgram({{GL_VERTEX_SHADER, vertex_shader}, {GL_FRAGMENT_SHADER, kFragmentShader}});
   if (!program) return Status::Error("occlusion depth pass: " + program.error());
   pass->program_ = std::move(*program);
   const GLuint id = pass->program_.id();
-  pass->loc_rotation_ = glGetUniformLocation(id, "u_rotation");
-  pass->loc_center_hi_ = glGetUniformLocation(id, "u_center_hi");
-  pass->loc_center_lo_ = glGetUniformLocation(id, "u_center_lo");
-  pass->loc_projection_ = glGetUniformLocation(id, "u_projection");
+  pass->camera_uniforms_ = CameraUniformLocations::Find(id);
 
   GLint previous_vertex_array = 0;
   glGetIntegerv(GL_VERTEX_ARRAY_BINDING, &previous_vertex_array);
@@ -135,7 +126,7 @@ Status GpuDepthPass::Resize(int width, int height) {
   return CheckGlError("occlusion depth texture");
 }
 
-Status GpuDepthPass::Render(const internal::CameraUniforms& camera, int width, int height) {
+Status GpuDepthPass::Render(const CameraUniforms& camera, int width, int height) {
   GLint max_size = 0;
   glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_size);
   if (width > max_size || height > max_size) {
@@ -158,10 +149,7 @@ Status GpuDepthPass::Render(const internal::CameraUniforms& camera, int width, i
   glClear(GL_DEPTH_BUFFER_BIT);
   if (num_indices_ > 0) {
     glUseProgram(program_.id());
-    glUniformMatrix3fv(loc_rotation_, 1, GL_FALSE, camera.rotation.data());
-    glUniform3fv(loc_center_hi_, 1, camera.center_hi.data());
-    glUniform3fv(loc_center_lo_, 1, camera.center_lo.data());
-    glUniformMatrix4fv(loc_projection_, 1, GL_FALSE, camera.projection.data());
+    camera_uniforms_.Set(camera);
     glBindVertexArray(vertex_array_.id());
     glDrawElements(GL_TRIANGLES, num_indices_, GL_UNSIGNED_INT, nullptr);
   }

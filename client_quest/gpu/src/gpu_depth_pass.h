@@ -7,8 +7,8 @@
 #include <memory>
 #include <vector>
 
-#include "camera_uniforms.h"
 #include "m2s/common/status.h"
+#include "m2s/gpu/camera_uniforms.h"
 #include "m2s/gpu/gl_util.h"
 
 namespace m2s {
@@ -22,7 +22,7 @@ class GpuDepthPass {
 
   // Renders the depth of the scene for one camera into a width x height texture (reallocated
   // only when the size changes). Saves and restores the GL state it touches.
-  Status Render(const internal::CameraUniforms& camera, int width, int height);
+  Status Render(const CameraUniforms& camera, int width, int height);
 
   GLuint texture() const { return texture_.id(); }
   int width() const { return width_; }
@@ -40,7 +40,7 @@ class GpuDepthPass {
   GLsizei num_indices_ = 0;
   int width_ = 0;
   int height_ = 0;
-  GLint loc_rotation_ = -1, loc_center_hi_ = -1, loc_center_lo_ = -1, loc_projection_ = -1;
+  CameraUniformLocations camera_uniforms_;
 };
 
 // The depth buffer resolution for an image and a resolution scale: round(scale * size),

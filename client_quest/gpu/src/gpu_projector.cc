@@ -5,7 +5,6 @@
 #include <cstring>
 #include <limits>
 
-#include "camera_uniforms.h"
 #include "gpu_depth_pass.h"
 
 namespace m2s {
@@ -26,9 +25,6 @@ layout(std430, binding = 1) buffer Counter { uint count; };
 struct Feature { uint id; float u; float v; float depth; };
 layout(std430, binding = 2) writeonly buffer Features { Feature features[]; };
 
-uniform mat3 u_rotation;    // camera_from_world
-uniform vec3 u_center_hi;   // camera centre in world = hi + lo
-uniform vec3 u_center_lo;
 uniform vec4 u_intrinsics;  // fx fy cx cy
 uniform vec4 u_range;       // width height near far
 uniform uint u_num_vertices;
@@ -45,7 +41,7 @@ void main() {
   float u = 0.0, v = 0.0, z = 0.0;
   if (id < u_num_vertices) {
     vec3 p = vec3(positions[3u * id], positions[3u * id + 1u], positions[3u * id + 2u]);
-    vec3 c = u_rotation * ((p - u_center_hi) - u_center_lo);
+    vec3 c = CameraFromWorld(p);
     z = c.z;
     if (z >= u_range.z && z <= u_range.w) {
       u = u_intrinsics.x * c.x / z + u_intrinsics.z;
@@ -129,14 +125,12 @@ Status GpuProjector::Init(const Scene& scene, const ProjectorOptions& options) {
                          std::to_string(max_block) + " bytes)");
   }
   const std::string header = std::string("#version 310 es\nprecision highp float;\n") +
-                             (options.occlusion ? "#define M2S_OCCLUSION 1\n" : "");
+                             (options.occlusion ? "#define M2S_OCCLUSION 1\n" : "") + kCameraGlsl;
   Expected<GlProgram> program = CompileProgram({{GL_COMPUTE_SHADER, header + kComputeShader}});
   if (!program) return program.status();
   program_ = std::move(*program);
   const GLuint id = program_.id();
-  loc_rotation_ = glGetUniformLocation(id, "u_rotation");
-  loc_center_hi_ = glGetUniformLocation(id, "u_center_hi");
-  loc_center_lo_ = glGetUniformLocation(id, "u_center_lo");
+  camera_uniforms_ = CameraUniformLocations::Find(id);
   loc_intrinsics_ = glGetUniformLocation(id, "u_intrinsics");
   loc_range_ = glGetUniformLocation(id, "u_range");
   loc_num_vertices_ = glGetUniformLocation(id, "u_num_vertices");
@@ -195,7 +189,7 @@ Status GpuProjector::Dispatch(const Pose3& world_from_camera, const Camera& came
                          " frames already in flight; Collect() first");
   }
   if (Status s = context_->MakeCurrent(); !s) return s;
-  const internal::CameraUniforms uniforms = internal::MakeCameraUniforms(world_from_camera, camera);
+  const CameraUniforms uniforms = MakeCameraUniforms(world_from_camera, camera);
   if (depth_pass_) {
     const int width = OcclusionBufferSize(camera.width, options_.occlusion_resolution_scale);
     const int height = OcclusionBufferSize(camera.height, options_.occlusion_resolution_scale);
@@ -210,9 +204,7 @@ Status GpuProjector::Dispatch(const Pose3& world_from_camera, const Camera& came
   GLint previous_program = 0;
   glGetIntegerv(GL_CURRENT_PROGRAM, &previous_program);
   glUseProgram(program_.id());
-  glUniformMatrix3fv(loc_rotation_, 1, GL_FALSE, uniforms.rotation.data());
-  glUniform3fv(loc_center_hi_, 1, uniforms.center_hi.data());
-  glUniform3fv(loc_center_lo_, 1, uniforms.center_lo.data());
+  camera_uniforms_.Set(uniforms);
   glUniform4fv(loc_intrinsics_, 1, uniforms.intrinsics.data());
   glUniform4fv(loc_range_, 1, uniforms.range.data());
   glUniform1ui(loc_num_vertices_, static_cast<GLuint>(num_vertices_));

@@ -9,33 +9,29 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "camera_uniforms.h"  // m2s::gpu's camera-centred uniforms, shared with the depth pass
+#include "m2s/gpu/camera_uniforms.h"
 #include "m2s/gpu/gl_util.h"
 
 namespace m2s {
 namespace {
 
-constexpr const char* kVertexShader = R"(#version 310 es
+constexpr const char* kVertexShaderBody = R"(
 layout(location = 0) in vec3 a_position;
 layout(location = 1) in vec3 a_normal;
 layout(location = 2) in vec2 a_uv;
 layout(location = 3) in vec4 a_color;
-uniform mat3 u_rotation;   // camera_from_world
-uniform vec3 u_center_hi;  // camera centre in world, split in two floats
-uniform vec3 u_center_lo;
-uniform mat4 u_projection; // y-flipped Camera::GlProjection(): row 0 = image top
 out vec3 v_camera;
 out vec3 v_normal;
 out vec2 v_uv;
 out vec4 v_color;
 void main() {
   // As the occlusion depth pass: camera-centred for float precision.
-  vec3 x_camera = u_rotation * ((a_position - u_center_hi) - u_center_lo);
+  vec3 x_camera = CameraFromWorld(a_position);
   v_camera = x_camera;
   v_normal = u_rotation * a_normal;
   v_uv = a_uv;
   v_color = a_color;
-  gl_Position = u_projection * vec4(x_camera.x, -x_camera.y, -x_camera.z, 1.0);
+  gl_Position = ClipFromCamera(x_camera);
 }
 )";
 
@@ -174,7 +170,7 @@ Status CheckBatch(const RenderBatch& batch, size_t index) {
 
 struct SceneRenderer::Impl {
   GlProgram program;
-  GLint loc_rotation = -1, loc_center_hi = -1, loc_center_lo = -1, loc_projection = -1;
+  CameraUniformLocations camera_uniforms;
   GLint loc_textured = -1, loc_has_normals = -1, loc_diffuse = -1, loc_ambient = -1,
         loc_texture = -1;
   std::vector<GpuBatch> batches;
@@ -238,15 +234,14 @@ Expected<std::unique_ptr<SceneRenderer>> SceneRenderer::Create(const RenderMesh&
     return Status::Error("SceneRenderer: no current GL context (create a GlContext first)");
   }
   auto impl = std::make_unique<Impl>();
+  const std::string vertex_shader =
+      std::string("#version 310 es\n") + kCameraGlsl + kVertexShaderBody;
   Expected<GlProgram> program =
-      CompileProgram({{GL_VERTEX_SHADER, kVertexShader}, {GL_FRAGMENT_SHADER, kFragmentShader}});
+      CompileProgram({{GL_VERTEX_SHADER, vertex_shader}, {GL_FRAGMENT_SHADER, kFragmentShader}});
   if (!program) return Status::Error("SceneRenderer: " + program.error());
   impl->program = std::move(*program);
   const GLuint id = impl->program.id();
-  impl->loc_rotation = glGetUniformLocation(id, "u_rotation");
-  impl->loc_center_hi = glGetUniformLocation(id, "u_center_hi");
-  impl->loc_center_lo = glGetUniformLocation(id, "u_center_lo");
-  impl->loc_projection = glGetUniformLocation(id, "u_projection");
+  impl->camera_uniforms = CameraUniformLocations::Find(id);
   impl->loc_textured = glGetUniformLocation(id, "u_textured");
   impl->loc_has_normals = glGetUniformLocation(id, "u_has_normals");
   impl->loc_diffuse = glGetUniformLocation(id, "u_diffuse");
@@ -286,7 +281,7 @@ Status SceneRenderer::Render(const Pose3& world_from_camera, RenderedFrame* fram
   if (!world_from_camera.AllFinite()) return Status::Error("SceneRenderer: non-finite pose");
   Impl& m = *impl_;
   const int width = camera_.width, height = camera_.height;
-  const internal::CameraUniforms u = internal::MakeCameraUniforms(world_from_camera, camera_);
+  const CameraUniforms u = MakeCameraUniforms(world_from_camera, camera_);
   GLint previous_framebuffer = 0, previous_read = 0, viewport[4] = {0, 0, 0, 0};
   glGetIntegerv(GL_DRAW_FRAMEBUFFER_BINDING, &previous_framebuffer);
   glGetIntegerv(GL_READ_FRAMEBUFFER_BINDING, &previous_read);
@@ -307,10 +302,7 @@ Status SceneRenderer::Render(const Pose3& world_from_camera, RenderedFrame* fram
   glClearBufferfv(GL_COLOR, 1, zero);
   glClearBufferfv(GL_DEPTH, 0, &one);
   glUseProgram(m.program.id());
-  glUniformMatrix3fv(m.loc_rotation, 1, GL_FALSE, u.rotation.data());
-  glUniform3fv(m.loc_center_hi, 1, u.center_hi.data());
-  glUniform3fv(m.loc_center_lo, 1, u.center_lo.data());
-  glUniformMatrix4fv(m.loc_projection, 1, GL_FALSE, u.projection.data());
+  m.camera_uniforms.Set(u);
   glUniform1f(m.loc_ambient, kAmbient);
   glUniform1i(m.loc_texture, 0);
   glActiveTexture(GL_TEXTURE0);

@@ -73,6 +73,7 @@
 
 #include "m2s/common/projector.h"
 #include "m2s/common/scene.h"
+#include "m2s/gpu/camera_uniforms.h"
 #include "m2s/gpu/gl_context.h"
 #include "m2s/gpu/gl_util.h"
 
@@ -131,8 +132,8 @@ class GpuProjector : public Projector {
   int next_slot_ = 0;  // slot the next Dispatch() writes
   int in_flight_ = 0;  // frames dispatched and not collected, oldest at next_slot_ - in_flight_
   // Uniform locations.
-  GLint loc_rotation_ = -1, loc_center_hi_ = -1, loc_center_lo_ = -1, loc_intrinsics_ = -1,
-        loc_range_ = -1, loc_num_vertices_ = -1, loc_occlusion_ = -1, loc_depth_size_ = -1,
+  CameraUniformLocations camera_uniforms_;
+  GLint loc_intrinsics_ = -1, loc_range_ = -1, loc_num_vertices_ = -1, loc_depth_size_ = -1,
         loc_bias_ = -1, loc_depth_ = -1;
 };
 
