@@ -5,10 +5,14 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <random>
 #include <set>
 #include <sstream>
 #include <string>
@@ -120,6 +124,72 @@ TEST_F(SceneTest, DefaultSceneWrittenAsObjAndPlyReloadsWithIdenticalIds) {
   ASSERT_TRUE(ply.ok()) << ply.error();
   ExpectSameScene(*ply, scene);
   ExpectSameScene(*obj, scene);
+}
+
+// Thousands of positions, each written three times (one of them as -0 where a coordinate is
+// 0), in a binary little-endian PLY: ids follow the rule of scene.h, computed here with a
+// std::map over the coordinates' bit patterns.
+TEST_F(SceneTest, RepeatedPositionsGetTheIdOfTheirFirstUseInAThousandsOfVertexFile) {
+  constexpr int kDistinct = 5000;
+  std::mt19937 rng(3);
+  std::uniform_int_distribution<int> coordinate(-40, 40);
+  std::vector<std::array<float, 3>> distinct;
+  std::set<std::array<float, 3>> taken;
+  while (static_cast<int>(distinct.size()) < kDistinct) {
+    const std::array<float, 3> p = {0.25f * coordinate(rng), 0.25f * coordinate(rng),
+                                    0.25f * coordinate(rng)};
+    if (taken.insert(p).second) distinct.push_back(p);
+  }
+  std::vector<std::array<float, 3>> records;  // each distinct position 3 times, shuffled
+  for (int copy = 0; copy < 3; ++copy) {
+    for (std::array<float, 3> p : distinct) {
+      if (copy == 1) {
+        for (float& c : p) c = c == 0.f ? -0.f : c;
+      }
+      records.push_back(p);
+    }
+  }
+  std::shuffle(records.begin(), records.end(), rng);
+  std::uniform_int_distribution<int> record(0, static_cast<int>(records.size()) - 1);
+  std::vector<std::array<int, 3>> faces(4000);
+  for (auto& f : faces) f = {record(rng), record(rng), record(rng)};
+
+  std::ostringstream ply;
+  ply << "ply\nformat binary_little_endian 1.0\nelement vertex " << records.size()
+      << "\nproperty float x\nproperty float y\nproperty float z\nelement face " << faces.size()
+      << "\nproperty list uchar int vertex_indices\nend_header\n";
+  for (const auto& p : records) ply.write(reinterpret_cast<const char*>(p.data()), 12);
+  for (const auto& f : faces) {
+    ply.put(3);
+    ply.write(reinterpret_cast<const char*>(f.data()), 12);
+  }
+  const Expected<Scene> scene = LoadScene(WriteText("many.ply", ply.str()));
+  ASSERT_TRUE(scene.ok()) << scene.error();
+
+  // The reference: corners in face order, then unused records in file order.
+  std::map<std::array<uint32_t, 3>, VertexId> ids;
+  std::vector<VertexId> id_of_record(records.size());
+  auto assign = [&](int r) {
+    std::array<uint32_t, 3> bits;
+    for (int k = 0; k < 3; ++k) {
+      const float c = records[r][k] == 0.f ? 0.f : records[r][k];
+      std::memcpy(&bits[k], &c, 4);
+    }
+    id_of_record[r] = ids.try_emplace(bits, static_cast<VertexId>(ids.size())).first->second;
+  };
+  std::vector<uint32_t> triangles;
+  for (const auto& f : faces) {
+    for (int r : f) assign(r);
+    const VertexId a = id_of_record[f[0]], b = id_of_record[f[1]], c = id_of_record[f[2]];
+    if (a != b && b != c && a != c) triangles.insert(triangles.end(), {a, b, c});
+  }
+  for (int r = 0; r < static_cast<int>(records.size()); ++r) assign(r);
+  ASSERT_EQ(scene->num_vertices(), static_cast<size_t>(kDistinct));
+  for (size_t r = 0; r < records.size(); ++r) {
+    const std::array<float, 3>& p = records[r];
+    ASSERT_EQ(scene->positions[id_of_record[r]], Eigen::Vector3f(p[0], p[1], p[2])) << r;
+  }
+  EXPECT_EQ(scene->triangles, triangles);
 }
 
 TEST_F(SceneTest, IdsAreStableAcrossReloads) {

@@ -214,6 +214,10 @@ Expected<Scene> ParseScene(const std::string& path, const SceneLoadOptions& opti
                 options.scale * options.rotation.normalized().toRotationMatrix(),
                 options.translation,
                 {}};
+  size_t vertices_in_meshes = 0;  // a hint: instanced meshes count once
+  for (unsigned int m = 0; m < ai->mNumMeshes; ++m)
+    vertices_in_meshes += ai->mMeshes[m]->mNumVertices;
+  loader.builder.Reserve(vertices_in_meshes);
   if (!loader.AddNodes(*ai->mRootNode)) {
     return Expected<Scene>::Error(where + "node hierarchy too large or cyclic");
   }
