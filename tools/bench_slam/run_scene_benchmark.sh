@@ -5,7 +5,9 @@
 # 30 fps. Writes docs/results/scene_diversity.md (and the rows as JSON next to it).
 #
 #   tools/bench_slam/run_scene_benchmark.sh [BUILD_DIR] [bench_scenes flags...]
-#     (SCENES_DURATION=S seconds of motion per run, default 30; M2S_CORPUS_DIR: mesh cache,
+#     (SCENES_DURATION=S seconds of motion per run, default 30; SCENES_JOBS=N scene / motion
+#      pairs run at once, default 1: each run is single-threaded and deterministic, so the
+#      figures do not depend on N, only the wall column does; M2S_CORPUS_DIR: mesh cache,
 #      default ~/.cache/m2s-corpus)
 set -euo pipefail
 root="$(cd "$(dirname "$0")/../.." && pwd)"
@@ -27,16 +29,38 @@ trap 'rm -rf "$work"' EXIT
 args=(--manifest "$root/tools/bench_slam/scenes.json" --mesh-root "$corpus/meshes"
       --duration "$duration" --fps 30 "$@")
 echo "scenes: bench_scenes ${args[*]}" >&2
+jobs="${SCENES_JOBS:-1}"
+for a in "$@"; do
+  if [ "$a" = --scenes ] || [ "$a" = --motions ]; then
+    echo "run_scene_benchmark: $a cannot be combined with the per-pair runs; run bench_scenes" >&2
+    exit 2
+  fi
+done
 "$bin" "${args[@]}" --list >"$work/scenes.txt"
-"$bin" "${args[@]}" --json "${out%.md}.json" >"$work/table.md" 2>"$work/log.txt" || {
-  tail -n 5 "$work/log.txt" >&2
-  exit 1
-}
+# One bench_scenes per scene / motion pair, $jobs at a time; rows are joined in manifest order.
+mapfile -t scenes < <(sed -n 's/^\([^ ]\+\) .* vertices .* triangles.*/\1/p' "$work/scenes.txt")
+units=()
+for scene in "${scenes[@]}"; do
+  for motion in head handheld drone; do units+=("$scene $motion"); done
+done
+printf '%s\0' "${args[@]}" >"$work/args"
+export work bin
+printf '%s\n' "${units[@]}" | cat -n | xargs -P "$jobs" -L 1 bash -c '
+  mapfile -d "" -t args <"$work/args"
+  "$bin" "${args[@]}" --scenes "$1" --motions "$2" --json "$work/$0.json" >"$work/$0.md" \
+    2>"$work/$0.log" || { tail -n 5 "$work/$0.log" >&2; exit 255; }' || exit 1
+{
+  head -n 2 "$work/1.md"
+  for i in $(seq 1 "${#units[@]}"); do tail -n +3 "$work/$i.md"; done
+} >"$work/table.md"
+python3 -c 'import json, sys; json.dump([r for f in sys.argv[2:] for r in json.load(open(f))],
+                                        open(sys.argv[1], "w"), indent=2)' \
+  "${out%.md}.json" $(for i in $(seq 1 "${#units[@]}"); do echo "$work/$i.json"; done)
 {
   echo "# Scene diversity: composed scenes x generated motions"
   echo
   echo "Measured $(date -u '+%Y-%m-%d %H:%M UTC') on $(nproc) cores with"
-  echo "\`SCENES_DURATION=$duration tools/bench_slam/run_scene_benchmark.sh\`: every scene of"
+  echo "\`SCENES_DURATION=$duration SCENES_JOBS=$jobs tools/bench_slam/run_scene_benchmark.sh\`: every scene of"
   echo "\`tools/bench_slam/scenes.json\` (meshes gathered by \`tools/bench_slam/make_corpus.sh\`)"
   echo "x head, hand-held and drone motion (seed 1, ${duration} s) x noise-free features, noisy"
   echo "features (0.5 px + 1 % wrong ids) and noisy features with occlusion; 640x480, 90 deg,"
