@@ -111,6 +111,8 @@ struct CpuProjector::Impl {
     double last_row = 0, last_column = 0;  // the last pixel centres of the band
   };
   void RasterizeTriangleAt(size_t t, const Band& band);
+  // A triangle whose corners are all at depth >= near.
+  void RasterizeInFront(const uint32_t* idx, const Band& band);
   void TestChunk(int worker);
   // Appends the vertices of [begin, end) that pass the depth test to out[count...]; returns
   // the new count.
@@ -218,7 +220,12 @@ void CpuProjector::Impl::RasterizeBand(int band, int num_bands) {
       }
     }
     const internal::CullGroup& group = triangle_groups[visible_triangle_groups[k]];
-    for (size_t t = group.begin; t < group.end; ++t) RasterizeTriangleAt(t, b);
+    if (box.bounded && box.min_depth >= camera.near && box.max_depth <= camera.far) {
+      // Every corner lies between near and far: no clipping, no depth checks per triangle.
+      for (size_t t = group.begin; t < group.end; ++t) RasterizeInFront(&triangles[3 * t], b);
+    } else {
+      for (size_t t = group.begin; t < group.end; ++t) RasterizeTriangleAt(t, b);
+    }
   }
 }
 
@@ -235,21 +242,7 @@ void CpuProjector::Impl::RasterizeTriangleAt(size_t t, const Band& band) {
   const int in_front = (z0 >= band.near) + (z1 >= band.near) + (z2 >= band.near);
   if (in_front == 0 || (z0 > band.far && z1 > band.far && z2 > band.far)) return;
   if (in_front == 3) {
-    // A triangle whose box holds no pixel centre of the band writes nothing: rejected before
-    // any edge setup, by the test RasterizeTriangle makes (on the same values).
-    const float sx = static_cast<float>(band.scale_x), sy = static_cast<float>(band.scale_y);
-    const float y0 = all_v[idx[0]] * sy, y1 = all_v[idx[1]] * sy, y2 = all_v[idx[2]] * sy;
-    if (!(std::max(static_cast<double>(band.row_begin), std::ceil(std::min({y0, y1, y2}) - 0.5)) <=
-          std::min(band.last_row, std::floor(std::max({y0, y1, y2}) - 0.5)))) {
-      return;
-    }
-    const float x0 = all_u[idx[0]] * sx, x1 = all_u[idx[1]] * sx, x2 = all_u[idx[2]] * sx;
-    if (!(std::max(0.0, std::ceil(std::min({x0, x1, x2}) - 0.5)) <=
-          std::min(band.last_column, std::floor(std::max({x0, x1, x2}) - 0.5)))) {
-      return;
-    }
-    const RasterVertex a{x0, y0, 1.0 / z0}, b{x1, y1, 1.0 / z1}, c{x2, y2, 1.0 / z2};
-    internal::RasterizeTriangle(a, b, c, band.row_begin, band.row_end, &depth_buffer);
+    RasterizeInFront(idx, band);
   } else {
     Eigen::Vector3d p_camera[3];
     for (int k = 0; k < 3; ++k) {
@@ -259,6 +252,25 @@ void CpuProjector::Impl::RasterizeTriangleAt(size_t t, const Band& band) {
     internal::ClipAndRasterizeTriangle(p_camera, camera, band.scale_x, band.scale_y, band.row_begin,
                                        band.row_end, &depth_buffer);
   }
+}
+
+void CpuProjector::Impl::RasterizeInFront(const uint32_t* idx, const Band& band) {
+  // A triangle whose box holds no pixel centre of the band writes nothing: rejected before
+  // any edge setup, by the test RasterizeTriangle makes (on the same values).
+  const float sx = static_cast<float>(band.scale_x), sy = static_cast<float>(band.scale_y);
+  const float y0 = all_v[idx[0]] * sy, y1 = all_v[idx[1]] * sy, y2 = all_v[idx[2]] * sy;
+  if (!(std::max(static_cast<double>(band.row_begin), std::ceil(std::min({y0, y1, y2}) - 0.5)) <=
+        std::min(band.last_row, std::floor(std::max({y0, y1, y2}) - 0.5)))) {
+    return;
+  }
+  const float x0 = all_u[idx[0]] * sx, x1 = all_u[idx[1]] * sx, x2 = all_u[idx[2]] * sx;
+  if (!(std::max(0.0, std::ceil(std::min({x0, x1, x2}) - 0.5)) <=
+        std::min(band.last_column, std::floor(std::max({x0, x1, x2}) - 0.5)))) {
+    return;
+  }
+  const double z0 = all_depth[idx[0]], z1 = all_depth[idx[1]], z2 = all_depth[idx[2]];
+  const RasterVertex a{x0, y0, 1.0 / z0}, b{x1, y1, 1.0 / z1}, c{x2, y2, 1.0 / z2};
+  internal::RasterizeTriangle(a, b, c, band.row_begin, band.row_end, &depth_buffer);
 }
 
 void CpuProjector::Impl::TestChunk(int worker) {

@@ -87,9 +87,10 @@ ScreenBox FrustumCuller::Footprint(const CullGroup& group, int buffer_width,
   Eigen::Vector3d corners[8];
   Corners(group, corners);
   ScreenBox box;
-  double min_x = kInf, max_x = -kInf, min_y = kInf, max_y = -kInf, min_z = kInf;
+  double min_x = kInf, max_x = -kInf, min_y = kInf, max_y = -kInf, min_z = kInf, max_z = -kInf;
   for (const Eigen::Vector3d& q : corners) {
     min_z = std::min(min_z, q.z());
+    max_z = std::max(max_z, q.z());
     const double x = camera_.fx * (q.x() / q.z()) + camera_.cx;
     const double y = camera_.fy * (q.y() / q.z()) + camera_.cy;
     min_x = std::min(min_x, x);
@@ -114,6 +115,7 @@ ScreenBox FrustumCuller::Footprint(const CullGroup& group, int buffer_width,
   box.y0 = lower(min_y * sy, buffer_height);
   box.y1 = upper(max_y * sy, buffer_height);
   box.min_depth = min_z * (1.0 - kDepthMargin);
+  box.max_depth = max_z * (1.0 + kDepthMargin);
   return box;
 }
 

@@ -181,12 +181,14 @@ std::vector<CullGroup> MakeTriangleGroups(const std::vector<uint32_t>& triangles
 // Where a group's box can appear in a depth buffer: the buffer pixels [x0, x1] x [y0, y1]
 // (clipped to the buffer, widened by a pixel on each side beyond what pixel-centre sampling
 // and the kernel's float rounding can reach) and a lower bound on the camera depth of every
-// point of the box, with a relative margin far above the kernel's rounding. `bounded` is
-// false when part of the box lies near or behind the camera plane (then nothing is known).
+// point of the box (and an upper bound), with a relative margin far above the kernel's rounding.
+// `bounded` is false when part of the box lies near or behind the camera plane (then nothing is
+// known).
 struct ScreenBox {
   bool bounded = false;
   int x0 = 0, x1 = -1, y0 = 0, y1 = -1;
   double min_depth = 0.0;
+  double max_depth = 0.0;  // an upper bound, with the same margin
   bool empty() const { return x0 > x1 || y0 > y1; }
 };
 
