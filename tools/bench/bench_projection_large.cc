@@ -109,8 +109,9 @@ void BM_LargeProjectCpu(benchmark::State& state) {
     state.SkipWithError(error.c_str());
     return;
   }
-  ProjectorOptions options;
-  options.occlusion = state.range(0) != 0;
+  // With occlusion, the clients' settings (a depth buffer of half the image's resolution).
+  ProjectorOptions options =
+      state.range(0) != 0 ? ProjectorOptions::Occluding() : ProjectorOptions{};
   auto projector = CpuProjector::Create(*scene, options);
   if (!projector) {
     state.SkipWithError(projector.error().c_str());

@@ -66,6 +66,7 @@ struct CpuProjector::Impl {
   // Occlusion: per-vertex kernel outputs for the whole scene, and the depth buffer.
   AlignedVector<float> all_u, all_v, all_depth;
   AlignedVector<uint8_t> all_visible;
+  AlignedVector<uint32_t> all_cells;  // internal::PixelCells in the depth buffer
   DepthBuffer depth_buffer;
   DepthBuffer dilated;  // Max3x3 of depth_buffer at every pixel: the vertex test's threshold
 
@@ -80,6 +81,7 @@ struct CpuProjector::Impl {
   Eigen::Matrix3d camera_from_world = Eigen::Matrix3d::Identity();
   Eigen::Vector3d camera_centre = Eigen::Vector3d::Zero();
   int active_workers = 1;
+  float cell_scale_x = 1.f, cell_scale_y = 1.f;  // image -> buffer pixels, as Band uses them
   // Vertex groups that may be seen, and (with occlusion) those to transform: the seen ones
   // and every group a seen triangle uses; worker w takes list[split[w] .. split[w + 1]).
   std::vector<uint32_t> visible_groups, transform_groups, visible_triangle_groups;
@@ -190,6 +192,8 @@ void CpuProjector::Impl::TransformChunk(int worker) {
     internal::TransformVertices(constants, x.data() + begin, y.data() + begin, z.data() + begin, n,
                                 all_u.data() + begin, all_v.data() + begin,
                                 all_depth.data() + begin, all_visible.data() + begin);
+    internal::PixelCells(all_u.data() + begin, all_v.data() + begin, n, cell_scale_x, cell_scale_y,
+                         all_cells.data() + begin);
   }
 }
 
@@ -255,6 +259,8 @@ void CpuProjector::Impl::RasterizeTriangleAt(size_t t, const Band& band) {
 }
 
 void CpuProjector::Impl::RasterizeInFront(const uint32_t* idx, const Band& band) {
+  if (internal::CoversNoPixelCentre(all_cells[idx[0]], all_cells[idx[1]], all_cells[idx[2]]))
+    return;
   // A triangle whose box holds no pixel centre of the band writes nothing: rejected before
   // any edge setup, by the test RasterizeTriangle makes (on the same values).
   const float sx = static_cast<float>(band.scale_x), sy = static_cast<float>(band.scale_y);
@@ -398,6 +404,7 @@ Expected<std::unique_ptr<CpuProjector>> CpuProjector::Create(const Scene& scene,
     impl->all_v.resize(n);
     impl->all_depth.resize(n);
     impl->all_visible.resize(n);
+    impl->all_cells.resize(n);
   }
   return std::unique_ptr<CpuProjector>(new CpuProjector(std::move(impl)));
 }
@@ -420,6 +427,8 @@ Status CpuProjector::Project(const Pose3& world_from_camera, const Camera& camer
     const int bw = std::max(1, static_cast<int>(std::lround(camera.width * s)));
     const int bh = std::max(1, static_cast<int>(std::lround(camera.height * s)));
     m.depth_buffer.Resize(bw, bh);
+    m.cell_scale_x = static_cast<float>(static_cast<double>(bw) / camera.width);
+    m.cell_scale_y = static_cast<float>(static_cast<double>(bh) / camera.height);
     m.dilated.Resize(bw, bh);
   }
   m.Cull(world_from_camera, pool_size);

@@ -111,6 +111,23 @@ FrameConstants MakeFrameConstants(const Pose3& world_from_camera, const Camera& 
 void TransformVertices(const FrameConstants& k, const float* x, const float* y, const float* z,
                        size_t n, float* u, float* v, float* depth, uint8_t* visible);
 
+// Pixel-centre cells of vertices in a depth buffer, for rejecting triangles that cover no
+// pixel centre with integer compares. For x = u[i] * scale_x (float, as the rasteriser
+// computes it), the cell is floor(x - 0.5) clamped to [-2, 32766], or kUnknownCell when
+// x - 0.5 is an integer or not finite; likewise y. cells[i] = cell_x | cell_y << 16 (16-bit
+// two's complement). Three corners with one known x cell (or one known y cell) lie strictly
+// between two neighbouring pixel centres (or all off the buffer on one side): the triangle
+// covers no pixel centre.
+inline constexpr uint16_t kUnknownCell = 0x8000;
+void PixelCells(const float* u, const float* v, size_t n, float scale_x, float scale_y,
+                uint32_t* cells);
+// True when the triangle with these corner cells certainly covers no pixel centre.
+inline bool CoversNoPixelCentre(uint32_t c0, uint32_t c1, uint32_t c2) {
+  const uint32_t differ = (c0 ^ c1) | (c0 ^ c2);
+  return ((differ & 0xFFFFu) == 0 && (c0 & 0xFFFFu) != kUnknownCell) ||
+         ((differ >> 16) == 0 && (c0 >> 16) != kUnknownCell);
+}
+
 // Appends (first_id + i, u[i], v[i], depth[i]) for every i < n with visible[i] to `out`,
 // which must have room for n + 1 entries; returns the number written.
 size_t CompactVisible(const float* u, const float* v, const float* depth, const uint8_t* visible,
