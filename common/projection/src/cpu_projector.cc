@@ -6,6 +6,7 @@
 #include <limits>
 #include <string>
 #include <thread>
+#include <utility>
 
 #include "cpu_projector_internal.h"
 
@@ -52,6 +53,7 @@ struct CpuProjector::Impl {
     AlignedVector<uint8_t> visible;
     std::vector<ProjectedVertex> out;  // grows to the chunk size + 1, never shrinks
     size_t count = 0;
+    size_t tested = 0;  // vertices of the groups this worker depth-tested in the last frame
   };
 
   ProjectorOptions options;
@@ -64,7 +66,9 @@ struct CpuProjector::Impl {
   // Occlusion: per-vertex kernel outputs for the whole scene, and the depth buffer.
   AlignedVector<float> all_u, all_v, all_depth;
   AlignedVector<uint8_t> all_visible;
+  AlignedVector<uint32_t> all_cells;  // internal::PixelCells in the depth buffer
   DepthBuffer depth_buffer;
+  DepthBuffer dilated;  // Max3x3 of depth_buffer at every pixel: the vertex test's threshold
 
   // Culling groups (cpu_projector_internal.h) and, per triangle group, the vertex groups its
   // corners belong to (tri_refs[tri_ref_begin[t] .. tri_ref_begin[t + 1]]).
@@ -77,9 +81,14 @@ struct CpuProjector::Impl {
   Eigen::Matrix3d camera_from_world = Eigen::Matrix3d::Identity();
   Eigen::Vector3d camera_centre = Eigen::Vector3d::Zero();
   int active_workers = 1;
+  float cell_scale_x = 1.f, cell_scale_y = 1.f;  // image -> buffer pixels, as Band uses them
   // Vertex groups that may be seen, and (with occlusion) those to transform: the seen ones
   // and every group a seen triangle uses; worker w takes list[split[w] .. split[w + 1]).
   std::vector<uint32_t> visible_groups, transform_groups, visible_triangle_groups;
+  // With occlusion, the buffer footprints of the visible vertex groups and of the visible
+  // triangle groups (the latter ordered nearest first, so that hidden groups are skipped).
+  std::vector<internal::ScreenBox> vertex_footprints, triangle_footprints;
+  std::vector<std::pair<double, uint32_t>> triangle_order;
   std::vector<size_t> visible_split, transform_split;
   std::vector<uint8_t> group_needed;
   size_t frame_vertices = 0;        // vertices in the visible groups
@@ -95,14 +104,17 @@ struct CpuProjector::Impl {
   void ProjectChunk(int worker);
   void TransformChunk(int worker);
   void RasterizeBand(int band, int num_bands);
+  void DilateBand(int band, int num_bands);
   // One band of depth-buffer rows and the constants of its triangle loop.
   struct Band {
     int row_begin = 0, row_end = 0;
     double scale_x = 1, scale_y = 1;  // image pixels -> buffer pixels
     float near = 0, far = 0;
-    float top = 0, bottom = 0, right = 0;  // float rejection limits, a pixel of margin
+    double last_row = 0, last_column = 0;  // the last pixel centres of the band
   };
   void RasterizeTriangleAt(size_t t, const Band& band);
+  // A triangle whose corners are all at depth >= near.
+  void RasterizeInFront(const uint32_t* idx, const Band& band);
   void TestChunk(int worker);
   // Appends the vertices of [begin, end) that pass the depth test to out[count...]; returns
   // the new count.
@@ -125,11 +137,26 @@ void CpuProjector::Impl::Cull(const Pose3& world_from_camera, int pool_size) {
   visible_triangle_groups.clear();
   group_needed.assign(vertex_groups.size(), 0);
   for (uint32_t g : visible_groups) group_needed[g] = 1;
+  const int bw = depth_buffer.width(), bh = depth_buffer.height();
+  vertex_footprints.clear();
+  for (uint32_t g : visible_groups)
+    vertex_footprints.push_back(culler.Footprint(vertex_groups[g], bw, bh));
+  triangle_order.clear();
   for (uint32_t t = 0; t < triangle_groups.size(); ++t) {
     if (!culler.MayBeVisible(triangle_groups[t])) continue;
-    visible_triangle_groups.push_back(t);
+    const internal::ScreenBox box = culler.Footprint(triangle_groups[t], bw, bh);
+    if (box.bounded && box.empty()) continue;  // covers no pixel centre of the buffer
+    triangle_order.emplace_back(box.bounded ? box.min_depth : -1.0, t);
     for (uint32_t k = tri_ref_begin[t]; k < tri_ref_begin[t + 1]; ++k)
       group_needed[tri_refs[k]] = 1;
+  }
+  // Nearest first: the buffer then fills early and hides more of the groups behind. The
+  // minimum depth does not depend on the order.
+  std::sort(triangle_order.begin(), triangle_order.end());
+  triangle_footprints.clear();
+  for (const auto& [depth, t] : triangle_order) {
+    visible_triangle_groups.push_back(t);
+    triangle_footprints.push_back(culler.Footprint(triangle_groups[t], bw, bh));
   }
   transform_groups.clear();
   transformed_vertices = 0;
@@ -165,6 +192,8 @@ void CpuProjector::Impl::TransformChunk(int worker) {
     internal::TransformVertices(constants, x.data() + begin, y.data() + begin, z.data() + begin, n,
                                 all_u.data() + begin, all_v.data() + begin,
                                 all_depth.data() + begin, all_visible.data() + begin);
+    internal::PixelCells(all_u.data() + begin, all_v.data() + begin, n, cell_scale_x, cell_scale_y,
+                         all_cells.data() + begin);
   }
 }
 
@@ -181,14 +210,34 @@ void CpuProjector::Impl::RasterizeBand(int band, int num_bands) {
   b.scale_y = static_cast<double>(height) / camera.height;
   b.near = constants.near;
   b.far = constants.far;
-  b.top = static_cast<float>(row_begin) - 1.f;
-  b.bottom = static_cast<float>(row_end) + 1.f;
-  b.right = static_cast<float>(depth_buffer.width()) + 1.f;
-  for (uint32_t group : visible_triangle_groups) {
-    for (size_t t = triangle_groups[group].begin; t < triangle_groups[group].end; ++t) {
-      RasterizeTriangleAt(t, b);
+  b.last_row = row_end - 1;
+  b.last_column = depth_buffer.width() - 1;
+  for (size_t k = 0; k < visible_triangle_groups.size(); ++k) {
+    const internal::ScreenBox& box = triangle_footprints[k];
+    if (box.bounded) {
+      // Outside the band, or behind what the band already holds: the group cannot lower
+      // any depth here.
+      const int y0 = std::max(box.y0, row_begin), y1 = std::min(box.y1, row_end - 1);
+      if (y0 > y1 || depth_buffer.AllNearerThan(box.x0, box.x1, y0, y1, 1.f, 0.f,
+                                                static_cast<float>(box.min_depth))) {
+        continue;
+      }
+    }
+    const internal::CullGroup& group = triangle_groups[visible_triangle_groups[k]];
+    if (box.bounded && box.min_depth >= camera.near && box.max_depth <= camera.far) {
+      // Every corner lies between near and far: no clipping, no depth checks per triangle.
+      for (size_t t = group.begin; t < group.end; ++t) RasterizeInFront(&triangles[3 * t], b);
+    } else {
+      for (size_t t = group.begin; t < group.end; ++t) RasterizeTriangleAt(t, b);
     }
   }
+}
+
+void CpuProjector::Impl::DilateBand(int band, int num_bands) {
+  const int height = depth_buffer.height();
+  const int row_begin = static_cast<int>(static_cast<int64_t>(height) * band / num_bands);
+  const int row_end = static_cast<int>(static_cast<int64_t>(height) * (band + 1) / num_bands);
+  depth_buffer.Dilate3x3(row_begin, row_end, &dilated);
 }
 
 void CpuProjector::Impl::RasterizeTriangleAt(size_t t, const Band& band) {
@@ -197,14 +246,7 @@ void CpuProjector::Impl::RasterizeTriangleAt(size_t t, const Band& band) {
   const int in_front = (z0 >= band.near) + (z1 >= band.near) + (z2 >= band.near);
   if (in_front == 0 || (z0 > band.far && z1 > band.far && z2 > band.far)) return;
   if (in_front == 3) {
-    // Cheap rejection in float against the band, with a pixel of margin.
-    const float sx = static_cast<float>(band.scale_x), sy = static_cast<float>(band.scale_y);
-    const float y0 = all_v[idx[0]] * sy, y1 = all_v[idx[1]] * sy, y2 = all_v[idx[2]] * sy;
-    if (std::max({y0, y1, y2}) < band.top || std::min({y0, y1, y2}) > band.bottom) return;
-    const float x0 = all_u[idx[0]] * sx, x1 = all_u[idx[1]] * sx, x2 = all_u[idx[2]] * sx;
-    if (std::max({x0, x1, x2}) < -1.f || std::min({x0, x1, x2}) > band.right) return;
-    const RasterVertex a{x0, y0, 1.0 / z0}, b{x1, y1, 1.0 / z1}, c{x2, y2, 1.0 / z2};
-    internal::RasterizeTriangle(a, b, c, band.row_begin, band.row_end, &depth_buffer);
+    RasterizeInFront(idx, band);
   } else {
     Eigen::Vector3d p_camera[3];
     for (int k = 0; k < 3; ++k) {
@@ -216,13 +258,45 @@ void CpuProjector::Impl::RasterizeTriangleAt(size_t t, const Band& band) {
   }
 }
 
+void CpuProjector::Impl::RasterizeInFront(const uint32_t* idx, const Band& band) {
+  if (internal::CoversNoPixelCentre(all_cells[idx[0]], all_cells[idx[1]], all_cells[idx[2]]))
+    return;
+  // A triangle whose box holds no pixel centre of the band writes nothing: rejected before
+  // any edge setup, by the test RasterizeTriangle makes (on the same values).
+  const float sx = static_cast<float>(band.scale_x), sy = static_cast<float>(band.scale_y);
+  const float y0 = all_v[idx[0]] * sy, y1 = all_v[idx[1]] * sy, y2 = all_v[idx[2]] * sy;
+  if (!(std::max(static_cast<double>(band.row_begin), std::ceil(std::min({y0, y1, y2}) - 0.5)) <=
+        std::min(band.last_row, std::floor(std::max({y0, y1, y2}) - 0.5)))) {
+    return;
+  }
+  const float x0 = all_u[idx[0]] * sx, x1 = all_u[idx[1]] * sx, x2 = all_u[idx[2]] * sx;
+  if (!(std::max(0.0, std::ceil(std::min({x0, x1, x2}) - 0.5)) <=
+        std::min(band.last_column, std::floor(std::max({x0, x1, x2}) - 0.5)))) {
+    return;
+  }
+  const double z0 = all_depth[idx[0]], z1 = all_depth[idx[1]], z2 = all_depth[idx[2]];
+  const RasterVertex a{x0, y0, 1.0 / z0}, b{x1, y1, 1.0 / z1}, c{x2, y2, 1.0 / z2};
+  internal::RasterizeTriangle(a, b, c, band.row_begin, band.row_end, &depth_buffer);
+}
+
 void CpuProjector::Impl::TestChunk(int worker) {
   WorkerScratch& s = scratch[worker];
   size_t count = 0;
+  const float relative = 1.f + static_cast<float>(options.occlusion_depth_bias_relative);
+  const float absolute = static_cast<float>(options.occlusion_depth_bias_m);
+  s.tested = 0;
   for (size_t k = visible_split[worker]; k < visible_split[worker + 1]; ++k) {
+    // A group entirely behind the buffer (with the bias) keeps no vertex.
+    const internal::ScreenBox& box = vertex_footprints[k];
+    if (box.bounded &&
+        (box.empty() || dilated.AllNearerThan(box.x0, box.x1, box.y0, box.y1, relative, absolute,
+                                              static_cast<float>(box.min_depth)))) {
+      continue;
+    }
     const internal::CullGroup& group = vertex_groups[visible_groups[k]];
     ProjectedVertex* out = ReserveOut(s, count + (group.end - group.begin));
     count = TestGroup(group.begin, group.end, out, count);
+    s.tested += group.end - group.begin;
   }
   s.count = count;
 }
@@ -239,7 +313,7 @@ size_t CpuProjector::Impl::TestGroup(size_t begin, size_t end, ProjectedVertex* 
     if (!all_visible[i]) continue;
     const int bx = std::clamp(static_cast<int>(std::floor(all_u[i] * scale_x)), 0, max_x);
     const int by = std::clamp(static_cast<int>(std::floor(all_v[i] * scale_y)), 0, max_y);
-    const float nearest = depth_buffer.Max3x3(bx, by);
+    const float nearest = dilated.row(by)[bx];
     if (all_depth[i] <= nearest * relative + absolute) {
       out[count++] = ProjectedVertex{static_cast<VertexId>(i), all_u[i], all_v[i], all_depth[i]};
     }
@@ -251,6 +325,12 @@ CpuProjector::CpuProjector(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) 
 CpuProjector::~CpuProjector() = default;
 
 size_t CpuProjector::num_vertices() const { return impl_->num_vertices; }
+size_t CpuProjector::last_vertices_tested() const {
+  if (!impl_->options.occlusion) return impl_->frame_vertices;
+  size_t tested = 0;
+  for (int w = 0; w < impl_->active_workers; ++w) tested += impl_->scratch[w].tested;
+  return tested;
+}
 int CpuProjector::num_threads() const { return impl_->pool->size(); }
 size_t CpuProjector::last_vertices_considered() const {
   return impl_->options.occlusion ? impl_->transformed_vertices : impl_->frame_vertices;
@@ -324,6 +404,7 @@ Expected<std::unique_ptr<CpuProjector>> CpuProjector::Create(const Scene& scene,
     impl->all_v.resize(n);
     impl->all_depth.resize(n);
     impl->all_visible.resize(n);
+    impl->all_cells.resize(n);
   }
   return std::unique_ptr<CpuProjector>(new CpuProjector(std::move(impl)));
 }
@@ -341,6 +422,15 @@ Status CpuProjector::Project(const Pose3& world_from_camera, const Camera& camer
   m.camera_from_world = world_from_camera.RotationMatrix().transpose();
   m.camera_centre = world_from_camera.translation();
   const int pool_size = m.pool->size();
+  if (m.options.occlusion) {
+    const double s = m.options.occlusion_resolution_scale;
+    const int bw = std::max(1, static_cast<int>(std::lround(camera.width * s)));
+    const int bh = std::max(1, static_cast<int>(std::lround(camera.height * s)));
+    m.depth_buffer.Resize(bw, bh);
+    m.cell_scale_x = static_cast<float>(static_cast<double>(bw) / camera.width);
+    m.cell_scale_y = static_cast<float>(static_cast<double>(bh) / camera.height);
+    m.dilated.Resize(bw, bh);
+  }
   m.Cull(world_from_camera, pool_size);
 
   if (!m.options.occlusion) {
@@ -349,15 +439,14 @@ Status CpuProjector::Project(const Pose3& world_from_camera, const Camera& camer
     };
     m.pool->Run(project);
   } else {
-    const double s = m.options.occlusion_resolution_scale;
-    m.depth_buffer.Resize(std::max(1, static_cast<int>(std::lround(camera.width * s))),
-                          std::max(1, static_cast<int>(std::lround(camera.height * s))));
     auto transform = [&m](int worker) {
       if (worker < m.active_workers) m.TransformChunk(worker);
     };
     m.pool->Run(transform);
     auto rasterize = [&m, pool_size](int worker) { m.RasterizeBand(worker, pool_size); };
     m.pool->Run(rasterize);
+    auto dilate = [&m, pool_size](int worker) { m.DilateBand(worker, pool_size); };
+    m.pool->Run(dilate);
     auto test = [&m](int worker) {
       if (worker < m.active_workers) m.TestChunk(worker);
     };

@@ -1,10 +1,18 @@
 // CpuProjector culling: vertex and triangle groups with bounding boxes, the frustum test.
 #include <algorithm>
+#include <cmath>
+#include <limits>
 
 #include "cpu_projector_internal.h"
 
 namespace m2s::internal {
 namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+// Footprint(): boxes reaching closer than this fraction of the near plane are not bounded;
+// depths get this relative margin (the float kernel is within ~1e-6 of double).
+constexpr double kMinBoundedDepth = 0.5;
+constexpr double kDepthMargin = 1e-4;
 
 CullGroup BoxOf(uint32_t begin, uint32_t end) {
   CullGroup group;
@@ -51,7 +59,8 @@ std::vector<CullGroup> MakeTriangleGroups(const std::vector<uint32_t>& triangles
 }
 
 FrustumCuller::FrustumCuller(const Pose3& world_from_camera, const Camera& camera, double margin_px)
-    : camera_from_world_(world_from_camera.RotationMatrix().transpose()),
+    : camera_(camera),
+      camera_from_world_(world_from_camera.RotationMatrix().transpose()),
       centre_(world_from_camera.translation()) {
   // u >= -m  <=>  fx X + (cx + m) Z >= 0 for Z > 0; likewise the other sides. Near and far
   // with a relative margin.
@@ -64,14 +73,55 @@ FrustumCuller::FrustumCuller(const Pose3& world_from_camera, const Camera& camer
   planes_[5] = {0, 0, -1, camera.far * (1 + 1e-4)};
 }
 
-bool FrustumCuller::MayBeVisible(const CullGroup& group) const {
-  Eigen::Vector3d corners[8];
+void FrustumCuller::Corners(const CullGroup& group, Eigen::Vector3d (&corners)[8]) const {
   for (int k = 0; k < 8; ++k) {
     const Eigen::Vector3d p((k & 1) ? group.max.x() : group.min.x(),
                             (k & 2) ? group.max.y() : group.min.y(),
                             (k & 4) ? group.max.z() : group.min.z());
     corners[k] = camera_from_world_ * (p - centre_);
   }
+}
+
+ScreenBox FrustumCuller::Footprint(const CullGroup& group, int buffer_width,
+                                   int buffer_height) const {
+  Eigen::Vector3d corners[8];
+  Corners(group, corners);
+  ScreenBox box;
+  double min_x = kInf, max_x = -kInf, min_y = kInf, max_y = -kInf, min_z = kInf, max_z = -kInf;
+  for (const Eigen::Vector3d& q : corners) {
+    min_z = std::min(min_z, q.z());
+    max_z = std::max(max_z, q.z());
+    const double x = camera_.fx * (q.x() / q.z()) + camera_.cx;
+    const double y = camera_.fy * (q.y() / q.z()) + camera_.cy;
+    min_x = std::min(min_x, x);
+    max_x = std::max(max_x, x);
+    min_y = std::min(min_y, y);
+    max_y = std::max(max_y, y);
+  }
+  // Near the camera plane the projection is unbounded (and the kernel's rounding large).
+  if (!(min_z >= kMinBoundedDepth * camera_.near)) return box;
+  const double sx = static_cast<double>(buffer_width) / camera_.width;
+  const double sy = static_cast<double>(buffer_height) / camera_.height;
+  // A pixel of margin on each side, clamped before the conversion to int.
+  auto lower = [](double value, int size) {
+    return static_cast<int>(std::clamp(std::floor(value) - 1.0, 0.0, size + 1.0));
+  };
+  auto upper = [](double value, int size) {
+    return static_cast<int>(std::clamp(std::ceil(value) + 1.0, -2.0, size - 1.0));
+  };
+  box.bounded = true;
+  box.x0 = lower(min_x * sx, buffer_width);
+  box.x1 = upper(max_x * sx, buffer_width);
+  box.y0 = lower(min_y * sy, buffer_height);
+  box.y1 = upper(max_y * sy, buffer_height);
+  box.min_depth = min_z * (1.0 - kDepthMargin);
+  box.max_depth = max_z * (1.0 + kDepthMargin);
+  return box;
+}
+
+bool FrustumCuller::MayBeVisible(const CullGroup& group) const {
+  Eigen::Vector3d corners[8];
+  Corners(group, corners);
   for (const Eigen::Vector4d& plane : planes_) {
     bool all_outside = true;
     for (const Eigen::Vector3d& q : corners) {

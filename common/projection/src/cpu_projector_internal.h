@@ -111,6 +111,23 @@ FrameConstants MakeFrameConstants(const Pose3& world_from_camera, const Camera& 
 void TransformVertices(const FrameConstants& k, const float* x, const float* y, const float* z,
                        size_t n, float* u, float* v, float* depth, uint8_t* visible);
 
+// Pixel-centre cells of vertices in a depth buffer, for rejecting triangles that cover no
+// pixel centre with integer compares. For x = u[i] * scale_x (float, as the rasteriser
+// computes it), the cell is floor(x - 0.5) clamped to [-2, 32766], or kUnknownCell when
+// x - 0.5 is an integer or not finite; likewise y. cells[i] = cell_x | cell_y << 16 (16-bit
+// two's complement). Three corners with one known x cell (or one known y cell) lie strictly
+// between two neighbouring pixel centres (or all off the buffer on one side): the triangle
+// covers no pixel centre.
+inline constexpr uint16_t kUnknownCell = 0x8000;
+void PixelCells(const float* u, const float* v, size_t n, float scale_x, float scale_y,
+                uint32_t* cells);
+// True when the triangle with these corner cells certainly covers no pixel centre.
+inline bool CoversNoPixelCentre(uint32_t c0, uint32_t c1, uint32_t c2) {
+  const uint32_t differ = (c0 ^ c1) | (c0 ^ c2);
+  return ((differ & 0xFFFFu) == 0 && (c0 & 0xFFFFu) != kUnknownCell) ||
+         ((differ >> 16) == 0 && (c0 >> 16) != kUnknownCell);
+}
+
 // Appends (first_id + i, u[i], v[i], depth[i]) for every i < n with visible[i] to `out`,
 // which must have room for n + 1 entries; returns the number written.
 size_t CompactVisible(const float* u, const float* v, const float* depth, const uint8_t* visible,
@@ -129,6 +146,14 @@ class DepthBuffer {
   const float* row(int y) const { return data_.data() + static_cast<size_t>(y) * width_; }
   // Largest depth over the 3x3 pixels around (x, y), clipped to the buffer.
   float Max3x3(int x, int y) const;
+  // Writes Max3x3(x, y) for every pixel of rows [row_begin, row_end) to the same rows of
+  // `out` (sized like this buffer first, by the caller).
+  void Dilate3x3(int row_begin, int row_end, DepthBuffer* out) const;
+  // True when every pixel of [x0, x1] x [y0, y1] (inside the buffer) holds a depth d with
+  // d * relative + absolute < threshold: nothing at depth >= threshold there is in front of
+  // the buffer. False for an empty rectangle.
+  bool AllNearerThan(int x0, int x1, int y0, int y1, float relative, float absolute,
+                     float threshold) const;
 
  private:
   int width_ = 0;
@@ -170,6 +195,20 @@ std::vector<CullGroup> MakeVertexGroups(const float* x, const float* y, const fl
 std::vector<CullGroup> MakeTriangleGroups(const std::vector<uint32_t>& triangles, const float* x,
                                           const float* y, const float* z, size_t group_size);
 
+// Where a group's box can appear in a depth buffer: the buffer pixels [x0, x1] x [y0, y1]
+// (clipped to the buffer, widened by a pixel on each side beyond what pixel-centre sampling
+// and the kernel's float rounding can reach) and a lower bound on the camera depth of every
+// point of the box (and an upper bound), with a relative margin far above the kernel's rounding.
+// `bounded` is false when part of the box lies near or behind the camera plane (then nothing is
+// known).
+struct ScreenBox {
+  bool bounded = false;
+  int x0 = 0, x1 = -1, y0 = 0, y1 = -1;
+  double min_depth = 0.0;
+  double max_depth = 0.0;  // an upper bound, with the same margin
+  bool empty() const { return x0 > x1 || y0 > y1; }
+};
+
 // A conservative frustum test: MayBeVisible() is false only when no point of the box lies at
 // near <= Z <= far with (u, v) within margin_px of the image (checked against the box's
 // corners, in double, so the float kernel's rounding can never make a culled vertex visible).
@@ -177,8 +216,14 @@ class FrustumCuller {
  public:
   FrustumCuller(const Pose3& world_from_camera, const Camera& camera, double margin_px);
   bool MayBeVisible(const CullGroup& group) const;
+  // The box's footprint in a depth buffer of buffer_width x buffer_height pixels (image
+  // pixels scaled by buffer_width / camera.width, buffer_height / camera.height).
+  ScreenBox Footprint(const CullGroup& group, int buffer_width, int buffer_height) const;
 
  private:
+  void Corners(const CullGroup& group, Eigen::Vector3d (&corners)[8]) const;
+
+  Camera camera_;
   Eigen::Matrix3d camera_from_world_;
   Eigen::Vector3d centre_;
   // Each plane n . q >= 0 (q in camera coordinates) holds for every visible point.

@@ -1,4 +1,6 @@
 // The vectorisable vertex kernel and the persistent worker pool of CpuProjector.
+#include <algorithm>
+#include <cmath>
 #include <cstring>
 
 #include "cpu_projector_internal.h"
@@ -112,6 +114,24 @@ void TransformVertices(const FrameConstants& k, const float* __restrict x,
     depth[i] = cam_z;
     visible[i] = static_cast<uint8_t>(in);
   }
+}
+
+namespace {
+
+uint32_t PixelCell(float scaled) {
+  const double x = static_cast<double>(scaled) - 0.5;
+  const double cell = std::floor(x);
+  if (!std::isfinite(x) || cell == x) return kUnknownCell;
+  return static_cast<uint16_t>(static_cast<int16_t>(std::clamp(cell, -2.0, 32766.0)));
+}
+
+}  // namespace
+
+M2S_KERNEL_CLONES
+void PixelCells(const float* __restrict u, const float* __restrict v, size_t n, float scale_x,
+                float scale_y, uint32_t* __restrict cells) {
+  for (size_t i = 0; i < n; ++i)
+    cells[i] = PixelCell(u[i] * scale_x) | PixelCell(v[i] * scale_y) << 16;
 }
 
 size_t CompactVisible(const float* __restrict u, const float* __restrict v,

@@ -87,6 +87,25 @@ float DepthBuffer::Max3x3(int x, int y) const {
   return result;
 }
 
+void DepthBuffer::Dilate3x3(int row_begin, int row_end, DepthBuffer* out) const {
+  for (int y = row_begin; y < row_end; ++y) {
+    float* dilated = out->row(y);
+    for (int x = 0; x < width_; ++x) dilated[x] = Max3x3(x, y);
+  }
+}
+
+bool DepthBuffer::AllNearerThan(int x0, int x1, int y0, int y1, float relative, float absolute,
+                                float threshold) const {
+  if (x0 > x1 || y0 > y1) return false;
+  for (int y = y0; y <= y1; ++y) {
+    const float* r = row(y);
+    for (int x = x0; x <= x1; ++x) {
+      if (!(r[x] * relative + absolute < threshold)) return false;
+    }
+  }
+  return true;
+}
+
 M2S_KERNEL_CLONES
 void RasterizeTriangle(const RasterVertex& a, const RasterVertex& b_in, const RasterVertex& c_in,
                        int row_begin, int row_end, DepthBuffer* buffer) {

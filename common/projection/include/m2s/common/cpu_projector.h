@@ -22,6 +22,14 @@
 // may be seen (with occlusion: also the vertex groups of triangles that may be seen). The
 // output is exactly that of projecting everything; the work follows what is in view.
 //
+// Occlusion culling. With occlusion, the triangle groups in view are rasterised nearest box
+// first; a group whose box, projected to the buffer (with a pixel of margin), lies entirely
+// behind what the buffer already holds there is skipped (it could not lower any depth), and
+// so is a vertex group entirely behind the finished buffer (with the depth bias: it could not
+// keep a vertex). A triangle whose box holds no pixel centre is rejected before any edge
+// setup. None of this changes the output: the minimum depth does not depend on the order,
+// and every skip is conservative by a relative depth margin of 1e-4.
+//
 // Occlusion (ProjectorOptions::occlusion), the rule shared with the GPU projector:
 //  1. Depth buffer of bw x bh pixels, bw = max(1, lround(width * s)), bh = max(1,
 //     lround(height * s)), s = occlusion_resolution_scale. Image pixel coordinates map to
@@ -73,6 +81,10 @@ class CpuProjector final : public Projector {
   // Vertices of the groups the last Project() could not cull (those it transformed and
   // tested): a measure of the work, in proportion to what is in view.
   size_t last_vertices_considered() const;
+  // Vertices of the groups the last Project() tested for visibility: with occlusion, those
+  // of the groups in view whose box is not entirely behind the depth buffer (without
+  // occlusion, last_vertices_considered()).
+  size_t last_vertices_tested() const;
   // Worker threads in the pool, the calling thread included.
   int num_threads() const;
 
