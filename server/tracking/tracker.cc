@@ -297,7 +297,11 @@ bool Tracker::Relocalise(const Association& a, Pose3* camera_from_world,
       OptimizePose(model_.camera, MakePoseOptions(model_), points, uvs, &pose);
   if (!pose.AllFinite() || refined.num_inliers < required / 2) return false;
   *camera_from_world = pose;
-  return Classify(a, pose, /*skip_dormant=*/false, inlier) >= required;
+  const int classified = Classify(a, pose, /*skip_dormant=*/false, inlier);
+  // Exact association: every associated point is the vertex the frame sees, so a pose that
+  // leaves most of them unexplained is an ambiguity of a weak point set (a distant or bunched
+  // object fits a wrong pose within the RANSAC bound), not the camera's pose.
+  return classified >= required && 2 * classified >= n;
 }
 
 bool Tracker::TrackRotationOnly(const SortedFeatures& features, const Association& a,
@@ -418,9 +422,11 @@ TrackerOutput Tracker::Track(int64_t seq, double timestamp, const SortedFeatures
     ok = Relocalise(a, &camera_from_world, &inlier);
     relocalised = ok && lost_;
   }
+  bool rotation_only = false;
   bool rotation_keyframe = false;
   if (!ok && !lost_) {
-    ok = TrackRotationOnly(features, a, &camera_from_world, &inlier, &rotation_keyframe);
+    ok = rotation_only =
+        TrackRotationOnly(features, a, &camera_from_world, &inlier, &rotation_keyframe);
   }
   if (!ok) {
     lost_ = true;
@@ -448,9 +454,13 @@ TrackerOutput Tracker::Track(int64_t seq, double timestamp, const SortedFeatures
   // waits for room in the queue: back-pressure instead of a lost track).
   const int reference_points = a.reference_points >= 0 ? a.reference_points : reference_points_;
   const bool critical = num_inliers < kCriticalTrackedRatio * reference_points;
-  if (localization_only_ || (mapping_busy && !critical) || relocalised ||
-      !(rotation_keyframe ||
-        NeedKeyframe(a, num_inliers, out.world_from_camera, timestamp, loop_candidate))) {
+  // A rotation-only pose's centre is the reference keyframe's, not a measurement: its
+  // keyframes come only from the view turning away (every keyframe at that centre, with the
+  // baseline BA noise gives them, would triangulate its new features badly).
+  const bool need_keyframe = rotation_only ? rotation_keyframe
+                                           : NeedKeyframe(a, num_inliers, out.world_from_camera,
+                                                          timestamp, loop_candidate);
+  if (localization_only_ || (mapping_busy && !critical) || relocalised || !need_keyframe) {
     return out;
   }
   KeyframeCandidate kf;

@@ -1,13 +1,14 @@
 // Frame-to-map tracking after initialisation: constant-velocity prediction, association to
 // map points by vertex id (exact), pose-only optimisation with outlier rejection, the tracking
-// state machine (ok / lost / relocalised: PnP + RANSAC against every map point seen), and the
-// keyframe decision. With TrackerOptions::min_constrained_points, poses are solved on the
-// well-constrained map points (MapPoint::constrained) when there are enough; every associated
-// point is classified, so a poorly constrained one that fits still becomes an observation of the
-// next keyframe and gains its baseline. When too few map points remain in view and the camera
-// has only turned since the reference keyframe (a head looking around while standing still:
-// new features have no parallax, so the map cannot grow), the pose is the keyframe's centre
-// with the rotation fitted to the bearings the two share by id (tracking/rotation_only.h).
+// state machine (ok / lost / relocalised: PnP + RANSAC against every map point seen, accepted
+// only when most associated points agree with the pose), and the keyframe decision. With
+// TrackerOptions::min_constrained_points, poses are solved on the well-constrained map points
+// (MapPoint::constrained) when there are enough; every associated point is classified, so a poorly
+// constrained one that fits still becomes an observation of the next keyframe and gains its
+// baseline. When too few map points remain in view and the camera has only turned since the
+// reference keyframe (a head looking around while standing still: new features have no parallax, so
+// the map cannot grow), the pose is the keyframe's centre with the rotation fitted to the bearings
+// the two share by id (tracking/rotation_only.h).
 //
 // Relocalisation's PnP runs behind an OpenCV boundary: an exception OpenCV throws (degenerate
 // input) is a failed relocalisation, and the frame is lost; Track() never throws it.
