@@ -9,6 +9,7 @@
 #include "m2s/common/logging.h"
 #include "m2s/common/numeric.h"
 #include "optimization/problems.h"
+#include "tracking/rotation_only.h"
 
 namespace m2s::slam {
 namespace {
@@ -32,6 +33,9 @@ constexpr int kPnpIterations = 200;
 constexpr double kSparseViewInlierFraction = 0.75;
 constexpr int kMinPoseInliers = 12;
 constexpr double kPnpThresholdSigmas = 4.0;
+// Rotation-only tracking: a keyframe when the frame shares less than this fraction of the
+// reference keyframe's features (the view has turned away from it).
+constexpr double kRotationKeyframeOverlap = 0.5;
 // Keyframes for unmapped features need some baseline (fraction of keyframe_baseline_ratio),
 // or the same features would ask for a keyframe on every frame.
 constexpr double kNewPointsBaselineFraction = 0.5;
@@ -156,6 +160,7 @@ void Tracker::Reset() {
   lost_ = false;
   velocity_ = Pose3::Identity();
   reference_kf_.reset();
+  reference_features_ = SortedFeatures();
   reference_points_ = 0;
 }
 
@@ -292,7 +297,41 @@ bool Tracker::Relocalise(const Association& a, Pose3* camera_from_world,
       OptimizePose(model_.camera, MakePoseOptions(model_), points, uvs, &pose);
   if (!pose.AllFinite() || refined.num_inliers < required / 2) return false;
   *camera_from_world = pose;
-  return Classify(a, pose, /*skip_dormant=*/false, inlier) >= required;
+  const int classified = Classify(a, pose, /*skip_dormant=*/false, inlier);
+  // Exact association: every associated point is the vertex the frame sees, so a pose that
+  // leaves most of them unexplained is an ambiguity of a weak point set (a distant or bunched
+  // object fits a wrong pose within the RANSAC bound), not the camera's pose.
+  return classified >= required && 2 * classified >= n;
+}
+
+bool Tracker::TrackRotationOnly(const SortedFeatures& features, const Association& a,
+                                Pose3* camera_from_world, std::vector<bool>* inlier,
+                                bool* keyframe) {
+  if (!reference_kf_ || !a.reference_pose) return false;
+  const double max_error_px = std::sqrt(kChi2TwoDof95) * model_.pixel_sigma;
+  std::optional<RotationOnlyPose> r;
+  size_t keyframe_features = 0;
+  map_->Read([&](const MapData& m) {
+    const Keyframe* kf = m.keyframe(*reference_kf_);
+    const std::vector<VertexId>& ids = kf != nullptr ? kf->ids : reference_features_.ids;
+    const std::vector<Eigen::Vector2d>& uvs = kf != nullptr ? kf->uvs : reference_features_.uvs;
+    keyframe_features = ids.size();
+    r = SolveRotationOnly(model_.camera, max_error_px, *a.reference_pose, ids, uvs, features);
+  });
+  if (!r || r->inliers < kMinPoseInliers ||
+      r->inliers < kSparseViewInlierFraction * static_cast<double>(r->shared)) {
+    return false;
+  }
+  // The map points in view must agree with the rotation, when there are enough to judge (a
+  // handful of fresh, noisy points does not outvote a thousand bearings).
+  const int fitting = Classify(a, r->camera_from_world, /*skip_dormant=*/false, inlier);
+  if (static_cast<int>(a.ids.size()) >= kMinPoseInliers &&
+      fitting < kSparseViewInlierFraction * static_cast<double>(a.ids.size())) {
+    return false;
+  }
+  *camera_from_world = r->camera_from_world;
+  *keyframe = r->inliers < kRotationKeyframeOverlap * static_cast<double>(keyframe_features);
+  return true;
 }
 
 int Tracker::RequiredInliers(const Association& a) const {
@@ -383,6 +422,12 @@ TrackerOutput Tracker::Track(int64_t seq, double timestamp, const SortedFeatures
     ok = Relocalise(a, &camera_from_world, &inlier);
     relocalised = ok && lost_;
   }
+  bool rotation_only = false;
+  bool rotation_keyframe = false;
+  if (!ok && !lost_) {
+    ok = rotation_only =
+        TrackRotationOnly(features, a, &camera_from_world, &inlier, &rotation_keyframe);
+  }
   if (!ok) {
     lost_ = true;
     out.state = TrackingState::kLost;
@@ -409,8 +454,13 @@ TrackerOutput Tracker::Track(int64_t seq, double timestamp, const SortedFeatures
   // waits for room in the queue: back-pressure instead of a lost track).
   const int reference_points = a.reference_points >= 0 ? a.reference_points : reference_points_;
   const bool critical = num_inliers < kCriticalTrackedRatio * reference_points;
-  if (localization_only_ || (mapping_busy && !critical) || relocalised ||
-      !NeedKeyframe(a, num_inliers, out.world_from_camera, timestamp, loop_candidate)) {
+  // A rotation-only pose's centre is the reference keyframe's, not a measurement: its
+  // keyframes come only from the view turning away (every keyframe at that centre, with the
+  // baseline BA noise gives them, would triangulate its new features badly).
+  const bool need_keyframe = rotation_only ? rotation_keyframe
+                                           : NeedKeyframe(a, num_inliers, out.world_from_camera,
+                                                          timestamp, loop_candidate);
+  if (localization_only_ || (mapping_busy && !critical) || relocalised || !need_keyframe) {
     return out;
   }
   KeyframeCandidate kf;
@@ -433,6 +483,7 @@ TrackerOutput Tracker::Track(int64_t seq, double timestamp, const SortedFeatures
     last_keyframe_median_depth_ = MedianDepth(camera_from_world, tracked_positions);
   }
   reference_kf_ = kf.id;
+  reference_features_ = features;
   reference_world_from_camera_ = kf.world_from_camera;
   reference_points_ = static_cast<int>(kf.tracked_points.size());
   last_keyframe_time_ = timestamp;

@@ -1,10 +1,14 @@
 // Frame-to-map tracking after initialisation: constant-velocity prediction, association to
 // map points by vertex id (exact), pose-only optimisation with outlier rejection, the tracking
-// state machine (ok / lost / relocalised: PnP + RANSAC against every map point seen), and the
-// keyframe decision. With TrackerOptions::min_constrained_points, poses are solved on the
-// well-constrained map points (MapPoint::constrained) when there are enough; every associated
-// point is classified, so a poorly constrained one that fits still becomes an observation of the
-// next keyframe and gains its baseline.
+// state machine (ok / lost / relocalised: PnP + RANSAC against every map point seen, accepted
+// only when most associated points agree with the pose), and the keyframe decision. With
+// TrackerOptions::min_constrained_points, poses are solved on the well-constrained map points
+// (MapPoint::constrained) when there are enough; every associated point is classified, so a poorly
+// constrained one that fits still becomes an observation of the next keyframe and gains its
+// baseline. When too few map points remain in view and the camera has only turned since the
+// reference keyframe (a head looking around while standing still: new features have no parallax, so
+// the map cannot grow), the pose is the keyframe's centre with the rotation fitted to the bearings
+// the two share by id (tracking/rotation_only.h).
 //
 // Relocalisation's PnP runs behind an OpenCV boundary: an exception OpenCV throws (degenerate
 // input) is a failed relocalisation, and the frame is lost; Track() never throws it.
@@ -106,6 +110,11 @@ class Tracker {
   std::vector<size_t> PoseSolvingPoints(const Association& a, bool skip_dormant) const;
   bool TrackWithModel(const Association& a, Pose3* camera_from_world, std::vector<bool>* inlier);
   bool Relocalise(const Association& a, Pose3* camera_from_world, std::vector<bool>* inlier);
+  // Pure rotation since the reference keyframe (tracking/rotation_only.h), tried when the map
+  // points in view are too few and the camera has not moved since that keyframe. Sets
+  // `*keyframe` when the frame shares less than half of the keyframe's features.
+  bool TrackRotationOnly(const SortedFeatures& features, const Association& a,
+                         Pose3* camera_from_world, std::vector<bool>* inlier, bool* keyframe);
   // Inliers a pose needs: TrackerOptions::min_inliers, or in a sparse view (fewer associated
   // points) 75 % of them and at least 12.
   int RequiredInliers(const Association& a) const;
@@ -135,6 +144,8 @@ class Tracker {
   int reference_points_ = 0;
   double last_keyframe_time_ = 0.0;
   double last_keyframe_median_depth_ = 1.0;
+  // The reference keyframe's features, for rotation-only tracking while it waits for mapping.
+  SortedFeatures reference_features_;
 };
 
 }  // namespace m2s::slam

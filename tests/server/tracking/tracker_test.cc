@@ -334,5 +334,39 @@ TEST(Tracker, AnOpenCvExceptionInRelocalisationIsALostFrame) {
   EXPECT_TRUE(tracker.lost());
 }
 
+// Relocalisation with exact association: every associated point is the vertex the frame sees,
+// so a PnP pose that explains only a minority of them is an ambiguity of a weak point set (a
+// bunched or distant object fits a wrong pose within the RANSAC bound), never the pose.
+// Here `consistent` of 100 points are mapped where they are and the rest metres off.
+TrackerOutput RelocaliseWithConsistentPoints(int consistent, const Pose3& world_from_camera) {
+  const Options options = TestOptions();
+  std::mt19937 rng(11);
+  Scene scene;
+  AddPoints(options.camera, 100, 0, /*old=*/false, 40, 600, 40, 440, &rng, &scene);
+  std::uniform_real_distribution<double> offset(-0.6, 0.6);
+  std::vector<Eigen::Vector3d> mapped = scene.true_points;
+  for (size_t i = static_cast<size_t>(consistent); i < mapped.size(); ++i) {
+    mapped[i] += Eigen::Vector3d(offset(rng), offset(rng), offset(rng));
+  }
+  Map map;
+  InsertScene(
+      scene, options.camera, [&](size_t i) { return mapped[i]; }, &map);
+  Tracker tracker(options.measurement(), options.tracker, options.drift, &map);
+  tracker.StartLost();
+  return tracker.Track(1, 0.1, Observe(scene, options.camera, world_from_camera, 0.3, &rng),
+                       /*mapping_busy=*/false);
+}
+
+TEST(Tracker, RelocalisationNeedsMostAssociatedPointsToAgree) {
+  const Pose3 truth(Eigen::AngleAxisd(0.05, Eigen::Vector3d::UnitY()).toRotationMatrix(),
+                    Eigen::Vector3d(0.1, -0.05, 0.02));
+  // 40 of 100 agree: more than TrackerOptions::min_inliers (30), still a minority.
+  EXPECT_EQ(RelocaliseWithConsistentPoints(40, truth).state, TrackingState::kLost);
+  const TrackerOutput majority = RelocaliseWithConsistentPoints(70, truth);
+  ASSERT_EQ(majority.state, TrackingState::kRelocalized);
+  EXPECT_LT(PositionError(majority.world_from_camera, truth), 0.01);
+  EXPECT_GE(majority.num_inliers, 65);
+}
+
 }  // namespace
 }  // namespace m2s::slam
