@@ -106,9 +106,9 @@ class Tracker {
   std::vector<size_t> PoseSolvingPoints(const Association& a, bool skip_dormant) const;
   bool TrackWithModel(const Association& a, Pose3* camera_from_world, std::vector<bool>* inlier);
   bool Relocalise(const Association& a, Pose3* camera_from_world, std::vector<bool>* inlier);
-  // Inliers a pose needs: TrackerOptions::min_inliers, or in a sparse view (fewer associated
-  // points) 75 % of them and at least 12.
-  int RequiredInliers(const Association& a) const;
+  // Inliers a pose classified on `num_points` associated points needs:
+  // TrackerOptions::min_inliers, or in a sparse view (fewer points) 75 % of them and at least 12.
+  int RequiredInliers(int num_points) const;
   // Marks the points reprojecting within the chi-square bound; returns their number.
   int Classify(const Association& a, const Pose3& camera_from_world, bool skip_dormant,
                std::vector<bool>* inlier) const;
