@@ -218,10 +218,14 @@ std::vector<size_t> Tracker::PoseSolvingPoints(const Association& a, bool skip_d
 bool Tracker::TrackWithModel(const Association& a, Pose3* camera_from_world,
                              std::vector<bool>* inlier) {
   const Pose3 prior = velocity_ * last_camera_from_world_;
-  const int required = RequiredInliers(a);
+  const int num_active = static_cast<int>(a.ids.size()) - a.num_dormant;
+  const int required = RequiredInliers(static_cast<int>(a.ids.size()));
+  // Classified on the recent points alone, a pose needs the inliers of a view of those.
+  const int required_active = RequiredInliers(num_active);
   // Solves from the motion prior on the associated points (dormant ones too or not),
   // subsampled evenly beyond TrackerOptions::max_points.
   auto solve = [&](bool skip_dormant, Pose3* pose) {
+    const int need = skip_dormant ? required_active : required;
     const std::vector<size_t> usable = PoseSolvingPoints(a, skip_dormant);
     std::vector<Eigen::Vector3d> points;
     std::vector<Eigen::Vector2d> uvs;
@@ -230,15 +234,14 @@ bool Tracker::TrackWithModel(const Association& a, Pose3* camera_from_world,
       points.push_back(a.points[usable[k]]);
       uvs.push_back(a.uvs[usable[k]]);
     }
-    if (static_cast<int>(points.size()) < required) return false;
+    if (static_cast<int>(points.size()) < need) return false;
     const int inliers =
         SolvePoseFromPrior(model_.camera, MakePoseOptions(model_), points, uvs, prior, pose);
-    return inliers >= required;
+    return inliers >= need;
   };
   // Dormant points (mapped long ago) may carry drift not yet corrected. They are left out
   // only when they disagree with the recent ones: the recent points alone can be few and
   // freshly triangulated, and a pose solved on them alone is then worse than one on all.
-  const int num_active = static_cast<int>(a.ids.size()) - a.num_dormant;
   if (a.num_dormant > 0 && num_active >= 2 * options_.min_inliers) {
     Pose3 active_pose, joint_pose;
     const bool active_ok = solve(/*skip_dormant=*/true, &active_pose);
@@ -259,23 +262,31 @@ bool Tracker::TrackWithModel(const Association& a, Pose3* camera_from_world,
     }
     if (!active_ok) return false;
     *camera_from_world = active_pose;
-    return Classify(a, active_pose, true, inlier) >= required;
+    return Classify(a, active_pose, true, inlier) >= required_active;
   }
   Pose3 pose;
-  if (!solve(/*skip_dormant=*/false, &pose)) return false;
+  if (solve(/*skip_dormant=*/false, &pose) && Classify(a, pose, false, inlier) >= required) {
+    *camera_from_world = pose;
+    return true;
+  }
+  // Too few recent points to weigh them against the dormant ones, and together they do not
+  // fit one pose: the dormant ones may have drifted (or never been well placed), so the
+  // recent points alone decide, as they would in a view with many of them.
+  if (a.num_dormant == 0 || num_active < kMinPoseInliers) return false;
+  if (!solve(/*skip_dormant=*/true, &pose)) return false;
   *camera_from_world = pose;
-  return Classify(a, pose, false, inlier) >= required;
+  return Classify(a, pose, true, inlier) >= required_active;
 }
 
 bool Tracker::Relocalise(const Association& a, Pose3* camera_from_world,
                          std::vector<bool>* inlier) {
   const int n = static_cast<int>(a.ids.size());
-  const int required = RequiredInliers(a);
+  const int required = RequiredInliers(n);
   if (n < required) return false;
   std::vector<cv::Point3d> object;
   std::vector<cv::Point2d> image;
   const std::vector<size_t> usable = PoseSolvingPoints(a, /*skip_dormant=*/false);
-  if (static_cast<int>(usable.size()) < options_.min_inliers) return false;
+  if (static_cast<int>(usable.size()) < required) return false;
   for (const size_t k : EvenlySpacedIndices(usable.size(), kMaxPnpPoints)) {
     const size_t i = usable[k];
     object.emplace_back(a.points[i].x(), a.points[i].y(), a.points[i].z());
@@ -334,11 +345,11 @@ bool Tracker::TrackRotationOnly(const SortedFeatures& features, const Associatio
   return true;
 }
 
-int Tracker::RequiredInliers(const Association& a) const {
+int Tracker::RequiredInliers(int num_points) const {
   // Exact association has no ambiguous matches: a sparse view's pose rests on most of the
   // points it sees, not on a fixed count it may never reach.
   const int from_view =
-      static_cast<int>(std::ceil(kSparseViewInlierFraction * static_cast<double>(a.ids.size())));
+      static_cast<int>(std::ceil(kSparseViewInlierFraction * static_cast<double>(num_points)));
   return std::clamp(from_view, std::min(kMinPoseInliers, options_.min_inliers),
                     options_.min_inliers);
 }

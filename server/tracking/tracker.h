@@ -115,9 +115,9 @@ class Tracker {
   // `*keyframe` when the frame shares less than half of the keyframe's features.
   bool TrackRotationOnly(const SortedFeatures& features, const Association& a,
                          Pose3* camera_from_world, std::vector<bool>* inlier, bool* keyframe);
-  // Inliers a pose needs: TrackerOptions::min_inliers, or in a sparse view (fewer associated
-  // points) 75 % of them and at least 12.
-  int RequiredInliers(const Association& a) const;
+  // Inliers a pose classified on `num_points` associated points needs:
+  // TrackerOptions::min_inliers, or in a sparse view (fewer points) 75 % of them and at least 12.
+  int RequiredInliers(int num_points) const;
   // Marks the points reprojecting within the chi-square bound; returns their number.
   int Classify(const Association& a, const Pose3& camera_from_world, bool skip_dormant,
                std::vector<bool>* inlier) const;

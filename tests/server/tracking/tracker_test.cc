@@ -227,6 +227,69 @@ TEST(Tracker, DriftedDormantPointsAreLeftOut) {
   EXPECT_LT(PositionError(out.world_from_camera, truth), 2e-3);
 }
 
+TEST(Tracker, SparseViewFollowsItsRecentPointsWhenDormantOnesDisagree) {
+  // A sparse view (a low-poly room): 26 recent points and 20 old ones whose part of the map is
+  // 4 cm off. Together they fit no pose with the 35 inliers a view of 46 points needs; the 26
+  // recent points alone track it (a view of 26 needs 20), as many recent points would in a
+  // dense view. The frame is not lost.
+  const Options options = TestOptions();
+  std::mt19937 rng(13);
+  Scene scene;
+  AddPoints(options.camera, 26, 0, false, 10, 630, 10, 470, &rng, &scene);
+  AddPoints(options.camera, 20, kFirstOldId, true, 10, 630, 10, 470, &rng, &scene);
+  std::vector<Eigen::Vector3d> mapped = scene.true_points;
+  for (size_t i = 0; i < mapped.size(); ++i) {
+    if (scene.old[i]) mapped[i] += Eigen::Vector3d(0.04, 0.0, 0.0);
+  }
+  Map map;
+  InsertScene(
+      scene, options.camera, [&](size_t i) { return mapped[i]; }, &map);
+  Tracker tracker(options.measurement(), options.tracker, options.drift, &map);
+  tracker.Start(kReferenceKeyframe, Pose3::Identity(), 26, 0.0, 2.0);
+  const Pose3 truth(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.005, 0.0, 0.002));
+  const SortedFeatures frame = Observe(scene, options.camera, truth, 0.5, &rng);
+
+  const TrackerOutput out = tracker.Track(1, 0.02, frame, /*mapping_busy=*/true);
+  ASSERT_EQ(out.state, TrackingState::kOk);
+  EXPECT_GE(out.num_inliers, 20);
+  EXPECT_LT(out.num_inliers, 35);
+  // The solution on the recent points (same solver, from the same start).
+  const Pose3 recent = SolveOn(options, scene, mapped, frame, false, true);
+  ASSERT_LT(PositionError(recent, truth), 5e-3);
+  EXPECT_LT(PositionError(out.world_from_camera, recent), 1e-6);
+}
+
+TEST(Tracker, LostTrackerRelocalisesInASparseView) {
+  // A view of 20 mapped points (fewer than min_inliers, 30): a lost tracker relocalises in it
+  // by PnP, with the inliers a sparse view needs (75 %, at least 12).
+  const Options options = TestOptions();
+  ASSERT_GT(options.tracker.min_inliers, 20);
+  std::mt19937 rng(17);
+  Scene scene;
+  AddPoints(options.camera, 20, 0, false, 80, 560, 80, 400, &rng, &scene);
+  Map map;
+  InsertScene(
+      scene, options.camera, [&](size_t i) { return scene.true_points[i]; }, &map);
+  Tracker tracker(options.measurement(), options.tracker, options.drift, &map);
+  tracker.StartLost();
+  const Pose3 truth(Eigen::Quaterniond(Eigen::AngleAxisd(0.05, Eigen::Vector3d::UnitY())),
+                    Eigen::Vector3d(0.1, -0.05, 0.03));
+  // The points are placed for the identity camera; this pose still sees all of them.
+  const SortedFeatures frame = Observe(scene, options.camera, truth, 0.5, &rng);
+  for (const Eigen::Vector2d& uv : frame.uvs) {
+    ASSERT_TRUE(uv.x() > 0 && uv.x() < 640 && uv.y() > 0 && uv.y() < 480) << uv.transpose();
+  }
+  const TrackerOutput out = tracker.Track(1, 0.1, frame, /*mapping_busy=*/false);
+  ASSERT_EQ(out.state, TrackingState::kRelocalized);
+  EXPECT_GE(out.num_inliers, 15);
+  // The least-squares pose on every point, solved from the identity (the truth is 10 cm and
+  // 3 degrees away): what 20 points with 0.5 px noise tell about the pose.
+  const Pose3 all = SolveOn(options, scene, scene.true_points, frame, true, true);
+  ASSERT_LT(PositionError(all, truth), 1e-2);
+  EXPECT_LT(PositionError(out.world_from_camera, all), 1e-4);
+  EXPECT_LT(out.world_from_camera.rotation().angularDistance(all.rotation()), 1e-4);
+}
+
 TEST(Tracker, FramesRecordAgainstAKeyframeStillQueuedForMapping) {
   // A keyframe candidate that mapping has not inserted yet is the reference of the next
   // frames; the recorded relative pose is taken from the pose the candidate was made with.
