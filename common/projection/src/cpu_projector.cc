@@ -67,9 +67,10 @@ struct CpuProjector::Impl {
   DepthBuffer depth_buffer;
 
   // Culling groups (cpu_projector_internal.h) and, per triangle group, the vertex groups its
-  // corners belong to (tri_refs[tri_ref_begin[t] .. tri_ref_begin[t + 1]]).
+  // corners belong to.
   std::vector<internal::CullGroup> vertex_groups, triangle_groups;
-  std::vector<uint32_t> tri_ref_begin, tri_refs;
+  std::vector<std::vector<uint32_t>> tri_refs;
+  std::vector<uint32_t> last_seen;  // scratch of TriangleGroupRefs
 
   // Per-frame state read by the workers.
   FrameConstants constants{};
@@ -85,8 +86,25 @@ struct CpuProjector::Impl {
   size_t frame_vertices = 0;        // vertices in the visible groups
   size_t transformed_vertices = 0;  // with occlusion: in the groups transformed
 
+  // The vertex groups triangle group t uses (marks, not a sort: 12288 corners a group).
+  void TriangleGroupRefs(uint32_t t) {
+    last_seen.resize(vertex_groups.size(), ~uint32_t{0});
+    const internal::CullGroup& group = triangle_groups[t];
+    std::vector<uint32_t>& refs = tri_refs[t];
+    refs.clear();
+    for (size_t i = 3 * size_t{group.begin}; i < 3 * size_t{group.end}; ++i) {
+      const auto g = static_cast<uint32_t>(triangles[i] / kVertexGroupSize);
+      if (last_seen[g] == t) continue;
+      last_seen[g] = t;
+      refs.push_back(g);
+    }
+  }
+  // Re-boxes the vertex groups holding `ids` (sorted) and the groups of ids [first, end).
+  void ReboxVertices(const std::vector<VertexId>& ids, VertexId first, VertexId end);
   // Fills the per-frame lists; returns the number of workers to wake.
   void Cull(const Pose3& world_from_camera, int pool_size);
+  // NaN coordinates: the kernel never finds a retired vertex visible, boxes leave it out.
+  void Retire(VertexId id) { x[id] = y[id] = z[id] = std::numeric_limits<float>::quiet_NaN(); }
   ProjectedVertex* ReserveOut(WorkerScratch& s, size_t n) {
     if (s.out.size() < n + 1) s.out.resize(n + 1);
     return s.out.data();
@@ -128,8 +146,7 @@ void CpuProjector::Impl::Cull(const Pose3& world_from_camera, int pool_size) {
   for (uint32_t t = 0; t < triangle_groups.size(); ++t) {
     if (!culler.MayBeVisible(triangle_groups[t])) continue;
     visible_triangle_groups.push_back(t);
-    for (uint32_t k = tri_ref_begin[t]; k < tri_ref_begin[t + 1]; ++k)
-      group_needed[tri_refs[k]] = 1;
+    for (uint32_t g : tri_refs[t]) group_needed[g] = 1;
   }
   transform_groups.clear();
   transformed_vertices = 0;
@@ -193,6 +210,7 @@ void CpuProjector::Impl::RasterizeBand(int band, int num_bands) {
 
 void CpuProjector::Impl::RasterizeTriangleAt(size_t t, const Band& band) {
   const uint32_t* idx = &triangles[3 * t];
+  if (idx[0] == idx[1] && idx[1] == idx[2]) return;  // a removed part's slot
   const float z0 = all_depth[idx[0]], z1 = all_depth[idx[1]], z2 = all_depth[idx[2]];
   const int in_front = (z0 >= band.near) + (z1 >= band.near) + (z2 >= band.near);
   if (in_front == 0 || (z0 > band.far && z1 > band.far && z2 > band.far)) return;
@@ -291,6 +309,13 @@ Expected<std::unique_ptr<CpuProjector>> CpuProjector::Create(const Scene& scene,
     impl->y[i] = p.y();
     impl->z[i] = p.z();
   }
+  for (VertexId id : scene.retired_ids) {
+    if (id >= n) {
+      return Expected<std::unique_ptr<CpuProjector>>::Error("scene retired id " +
+                                                            std::to_string(id) + " out of range");
+    }
+    impl->Retire(id);
+  }
   int threads = options.num_threads;
   if (threads == 0) threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   impl->pool = std::make_unique<WorkerPool>(threads);
@@ -307,25 +332,91 @@ Expected<std::unique_ptr<CpuProjector>> CpuProjector::Create(const Scene& scene,
     impl->triangles = scene.triangles;
     impl->triangle_groups = internal::MakeTriangleGroups(
         impl->triangles, impl->x.data(), impl->y.data(), impl->z.data(), kTriangleGroupSize);
-    impl->tri_ref_begin.push_back(0);
-    // The vertex groups each triangle group uses (marks, not a sort: 12288 corners a group).
-    std::vector<uint32_t> last_seen(impl->vertex_groups.size(), ~uint32_t{0});
-    for (uint32_t t = 0; t < impl->triangle_groups.size(); ++t) {
-      const internal::CullGroup& group = impl->triangle_groups[t];
-      for (size_t i = 3 * size_t{group.begin}; i < 3 * size_t{group.end}; ++i) {
-        const auto g = static_cast<uint32_t>(impl->triangles[i] / kVertexGroupSize);
-        if (last_seen[g] == t) continue;
-        last_seen[g] = t;
-        impl->tri_refs.push_back(g);
-      }
-      impl->tri_ref_begin.push_back(static_cast<uint32_t>(impl->tri_refs.size()));
-    }
+    impl->tri_refs.resize(impl->triangle_groups.size());
+    for (uint32_t t = 0; t < impl->triangle_groups.size(); ++t) impl->TriangleGroupRefs(t);
     impl->all_u.resize(n);
     impl->all_v.resize(n);
     impl->all_depth.resize(n);
     impl->all_visible.resize(n);
   }
   return std::unique_ptr<CpuProjector>(new CpuProjector(std::move(impl)));
+}
+
+void CpuProjector::Impl::ReboxVertices(const std::vector<VertexId>& ids, VertexId first,
+                                       VertexId end) {
+  std::vector<uint32_t> touched;
+  for (VertexId id : ids) touched.push_back(static_cast<uint32_t>(id / kVertexGroupSize));
+  for (size_t g = first / kVertexGroupSize; g * kVertexGroupSize < end; ++g)
+    touched.push_back(static_cast<uint32_t>(g));
+  std::sort(touched.begin(), touched.end());
+  touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
+  while (vertex_groups.size() * kVertexGroupSize < num_vertices) vertex_groups.emplace_back();
+  for (uint32_t g : touched) {
+    const auto begin = static_cast<uint32_t>(g * kVertexGroupSize);
+    const auto group_end = static_cast<uint32_t>(std::min(num_vertices, begin + kVertexGroupSize));
+    vertex_groups[g] = internal::BoxVertices(x.data(), y.data(), z.data(), begin, group_end);
+  }
+}
+
+Status CpuProjector::ApplyChange(const Scene& scene, const SceneChange& change) {
+  Impl& m = *impl_;
+  const size_t n = scene.positions.size();
+  const size_t num_triangles = scene.triangles.size() / 3;
+  auto out_of_range = [n](const std::vector<VertexId>& ids) {
+    return std::any_of(ids.begin(), ids.end(), [n](VertexId id) { return id >= n; });
+  };
+  if (n < m.num_vertices || n >= std::numeric_limits<VertexId>::max() ||
+      (change.first_new_id < change.end_new_id
+           ? change.first_new_id != m.num_vertices || change.end_new_id != n
+           : n != m.num_vertices) ||
+      out_of_range(change.moved_ids) || out_of_range(change.retired_ids) ||
+      scene.triangles.size() % 3 != 0 || change.end_triangle > num_triangles ||
+      change.first_triangle > change.end_triangle) {
+    return Status::Error(
+        "CpuProjector::ApplyChange: the change does not follow the projector's scene (apply "
+        "every change, in order, with the edited scene)");
+  }
+  const size_t old_n = m.num_vertices;
+  m.num_vertices = n;
+  m.x.resize(n);
+  m.y.resize(n);
+  m.z.resize(n);
+  auto copy = [&m, &scene](size_t id) {
+    const Eigen::Vector3f& p = scene.positions[id];
+    m.x[id] = p.x();
+    m.y[id] = p.y();
+    m.z[id] = p.z();
+  };
+  for (size_t id = old_n; id < n; ++id) copy(id);
+  for (VertexId id : change.moved_ids) copy(id);
+  for (VertexId id : change.retired_ids) m.Retire(id);
+  std::vector<VertexId> touched = change.moved_ids;
+  touched.insert(touched.end(), change.retired_ids.begin(), change.retired_ids.end());
+  m.ReboxVertices(touched, static_cast<VertexId>(old_n), static_cast<VertexId>(n));
+  if (!m.options.occlusion) return Status::Ok();
+
+  m.all_u.resize(n);
+  m.all_v.resize(n);
+  m.all_depth.resize(n);
+  m.all_visible.resize(n);
+  m.triangles.resize(scene.triangles.size());
+  std::copy(scene.triangles.begin() + 3 * ptrdiff_t{change.first_triangle},
+            scene.triangles.begin() + 3 * ptrdiff_t{change.end_triangle},
+            m.triangles.begin() + 3 * ptrdiff_t{change.first_triangle});
+  while (m.triangle_groups.size() * kTriangleGroupSize < num_triangles) {
+    m.triangle_groups.emplace_back();
+    m.tri_refs.emplace_back();
+  }
+  m.last_seen.assign(m.vertex_groups.size(), ~uint32_t{0});
+  for (size_t t = change.first_triangle / kTriangleGroupSize;
+       t * kTriangleGroupSize < change.end_triangle; ++t) {
+    const auto begin = static_cast<uint32_t>(t * kTriangleGroupSize);
+    const auto end = static_cast<uint32_t>(std::min(num_triangles, begin + kTriangleGroupSize));
+    m.triangle_groups[t] =
+        internal::BoxTriangles(m.triangles, m.x.data(), m.y.data(), m.z.data(), begin, end);
+    m.TriangleGroupRefs(static_cast<uint32_t>(t));
+  }
+  return Status::Ok();
 }
 
 Status CpuProjector::Project(const Pose3& world_from_camera, const Camera& camera,
