@@ -114,6 +114,11 @@ bool LocalMapper::CheckDrift(const KeyframeCandidate& c) {
 void LocalMapper::Process(const KeyframeCandidate& c, bool backlog) {
   if (!InsertKeyframe(c)) return;
   const bool corrected = CheckDrift(c);
+  if (!c.moved_points.empty()) {
+    map_->Write([&](MapData& m) {
+      for (const VertexId id : c.moved_points) m.ForgetMovedVertex(id, c.id);
+    });
+  }
   ExtendPoints(c);
   TriangulateNewPoints(c.id);
   const bool young = map_->Read([](const MapData& m) { return IsYoungMap(m); });

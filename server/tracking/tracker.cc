@@ -31,6 +31,8 @@ constexpr int kPnpIterations = 200;
 // fraction of them, and at least kMinPoseInliers, are inliers.
 constexpr double kSparseViewInlierFraction = 0.75;
 constexpr int kMinPoseInliers = 12;
+// Frames in a row a map point must outlie before its vertex counts as moved.
+constexpr int kMovedPointFrames = 3;
 constexpr double kPnpThresholdSigmas = 4.0;
 // Keyframes for unmapped features need some baseline (fraction of keyframe_baseline_ratio),
 // or the same features would ask for a keyframe on every frame.
@@ -399,6 +401,15 @@ TrackerOutput Tracker::Track(int64_t seq, double timestamp, const SortedFeatures
   for (size_t i = 0; i < inlier.size(); ++i) num_inliers += inlier[i] ? 1 : 0;
   for (size_t i = 0; i < a.ids.size(); ++i) dormant_inliers += a.dormant[i] ? 1 : 0;
   out.num_inliers = num_inliers;
+  // A point outlying in consecutive frames whose poses the rest supports has moved (a wrong id
+  // or a noisy feature is one frame's).
+  std::unordered_map<VertexId, int> streak;
+  for (size_t i = 0; i < a.ids.size(); ++i) {
+    if (a.dormant[i] || inlier[i]) continue;
+    const auto it = outlier_streak_.find(a.ids[i]);
+    streak[a.ids[i]] = it == outlier_streak_.end() ? 1 : it->second + 1;
+  }
+  outlier_streak_ = std::move(streak);
   if (reference_kf_ && a.reference_pose) {
     out.reference_keyframe = reference_kf_;
     out.reference_from_camera = a.reference_pose->Inverse() * out.world_from_camera;
@@ -429,6 +440,10 @@ TrackerOutput Tracker::Track(int64_t seq, double timestamp, const SortedFeatures
       tracked_positions.push_back(a.points[i]);
     }
   }
+  for (const auto& [id, frames] : outlier_streak_) {
+    if (frames >= kMovedPointFrames) kf.moved_points.push_back(id);
+  }
+  std::sort(kf.moved_points.begin(), kf.moved_points.end());
   if (!tracked_positions.empty()) {
     last_keyframe_median_depth_ = MedianDepth(camera_from_world, tracked_positions);
   }
