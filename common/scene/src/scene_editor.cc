@@ -62,6 +62,13 @@ SceneEditor::SceneEditor(Scene scene) : scene_(std::move(scene)) {
   scene_.parts.push_back(std::move(all));
 }
 
+std::string SceneEditor::UnknownPart(const std::string& name) const {
+  std::string message = "scene part '" + name + "': no such part (parts:";
+  for (size_t i = 0; i < scene_.parts.size() && i < 5; ++i)
+    message += (i == 0 ? " '" : ", '") + scene_.parts[i].name + "'";
+  return message + (scene_.parts.size() > 5 ? ", ...)" : ")");
+}
+
 size_t SceneEditor::IndexOf(const std::string& name) const {
   for (size_t i = 0; i < scene_.parts.size(); ++i)
     if (scene_.parts[i].name == name) return i;
@@ -155,7 +162,7 @@ std::vector<VertexId> SharedIds(const std::vector<ScenePart>& parts, size_t self
 Expected<SceneChange> SceneEditor::RemovePart(const std::string& name) {
   const size_t index = IndexOf(name);
   if (index == scene_.parts.size())
-    return Expected<SceneChange>::Error("scene part '" + name + "': no such part");
+    return Expected<SceneChange>::Error(UnknownPart(name));
   const ScenePart& part = scene_.parts[index];
   const std::vector<VertexId> shared = SharedIds(scene_.parts, index, UseCounts(part.extra_ids));
   SceneChange change;
@@ -174,7 +181,7 @@ Expected<SceneChange> SceneEditor::RemovePart(const std::string& name) {
 Expected<SceneChange> SceneEditor::MovePart(const std::string& name, const Pose3& motion) {
   const std::string where = "scene part '" + name + "': ";
   const size_t index = IndexOf(name);
-  if (index == scene_.parts.size()) return Expected<SceneChange>::Error(where + "no such part");
+  if (index == scene_.parts.size()) return Expected<SceneChange>::Error(UnknownPart(name));
   if (!motion.AllFinite()) return Expected<SceneChange>::Error(where + "non-finite motion");
   ScenePart& part = scene_.parts[index];
   const std::vector<VertexId> shared = SharedIds(scene_.parts, index, UseCounts(part.extra_ids));

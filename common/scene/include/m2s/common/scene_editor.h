@@ -76,6 +76,8 @@ class SceneEditor {
 
  private:
   size_t IndexOf(const std::string& name) const;  // parts().size() when absent
+  // "no such part", with the first part names.
+  std::string UnknownPart(const std::string& name) const;
   // How many live parts use each of `ids` (sorted).
   std::vector<int> UseCounts(const std::vector<VertexId>& ids) const;
 
