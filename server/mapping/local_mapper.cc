@@ -100,8 +100,10 @@ bool LocalMapper::CheckDrift(const KeyframeCandidate& c) {
   // later keyframe and, measured with bench_slam_accuracy (noisy, 30 fps, 60 s), leaves
   // room-s2 at 1.82 mm ATE against 1.30 mm when they merge (default: 1.48 against 1.56 mm).
   if (outcome != DriftOutcome::kDeferred) {
-    // When the map agrees with the keyframe (or was corrected to), an old point that does not
-    // reproject where the keyframe sees its vertex is not drift: the vertex moved.
+    // When the map agrees with the keyframe (or was corrected to), an old point that reprojects
+    // far from where the keyframe sees its vertex is not drift: the vertex moved. (Far: a few
+    // times the triangulation bound, so that old points' own errors and noise do not count.)
+    constexpr double kMovedDormantFactor = 4.0;
     const bool consistent = outcome == DriftOutcome::kAgree || outcome == DriftOutcome::kCorrected;
     map_->Write([&](MapData& m) {
       const Keyframe* kf = m.keyframe(c.id);
@@ -111,8 +113,8 @@ bool LocalMapper::CheckDrift(const KeyframeCandidate& c) {
         const Eigen::Vector2d* uv = kf != nullptr ? kf->Find(id) : nullptr;
         if (consistent && p != nullptr && uv != nullptr) {
           const Eigen::Vector3d q = camera_from_world * p->position;
-          if (!(q.z() > 0.0) ||
-              (model_.camera.Project(q) - *uv).norm() > checks_.max_reprojection_px) {
+          if (!(q.z() > 0.0) || (model_.camera.Project(q) - *uv).norm() >
+                                    kMovedDormantFactor * checks_.max_reprojection_px) {
             m.ForgetMovedVertex(id, c.id);
             continue;
           }

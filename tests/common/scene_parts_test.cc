@@ -17,6 +17,7 @@
 #include "m2s/common/cpu_projector.h"
 #include "m2s/common/scene.h"
 #include "m2s/common/scene_editor.h"
+#include "m2s/common/scene_events.h"
 
 namespace m2s {
 namespace {
@@ -258,6 +259,53 @@ TEST_F(ScenePartsTest, EditsAreFollowedByTheProjector) {
   EXPECT_FALSE(editor.AddPart("crate", kQuad, kQuadTriangles).ok());
   EXPECT_FALSE(editor.AddPart("bad", kQuad, {0, 1, 7}).ok());
   EXPECT_FALSE((*plain)->ApplyChange(scene_, *added).ok());  // not the projector's scene
+}
+
+TEST(SceneEvents, ParsesTheDocumentedLines) {
+  auto events = ParseSceneEvents(
+      "# a comment\n"
+      "\n"
+      "1.5 move world/b 0.3 0 0\n"
+      "2 move world/b 0 0 0 0 0 0 1   # a half turn about z\n"
+      "2 add copy world/b 0 1 0\n"
+      "3.25 remove world/a\n");
+  ASSERT_TRUE(events.ok()) << events.error();
+  ASSERT_EQ(events->size(), 4u);
+  const std::vector<SceneEvent>& e = *events;
+  EXPECT_EQ(e[0].time_s, 1.5);
+  EXPECT_EQ(e[0].action, SceneEvent::Action::kMove);
+  EXPECT_EQ(e[0].part, "world/b");
+  EXPECT_EQ(e[0].motion.translation(), Eigen::Vector3d(0.3, 0, 0));
+  EXPECT_NEAR(std::abs(e[1].motion.rotation().z()), 1.0, 1e-12);
+  EXPECT_EQ(e[2].action, SceneEvent::Action::kAdd);
+  EXPECT_EQ(e[2].part, "copy");
+  EXPECT_EQ(e[2].source, "world/b");
+  EXPECT_EQ(e[3].action, SceneEvent::Action::kRemove);
+  EXPECT_EQ(e[3].time_s, 3.25);
+  for (const char* bad : {"1 jump world/b", "1 move world/b 0 0", "2 remove a\n1 remove b",
+                          "1 move a 0 0 0 0 0 0 0", "1 remove a extra", "x remove a",
+                          "1 move a 0 0 nan"}) {
+    EXPECT_FALSE(ParseSceneEvents(bad).ok()) << bad;
+  }
+}
+
+TEST_F(ScenePartsTest, AnAddEventCopiesALivePart) {
+  SceneEditor editor(scene_);
+  auto events = ParseSceneEvents("0 add copy world/b 0 1 0\n0 add again nothing 0 0 0\n");
+  ASSERT_TRUE(events.ok()) << events.error();
+  auto added = ApplySceneEvent((*events)[0], &editor);
+  ASSERT_TRUE(added.ok()) << added.error();
+  const ScenePart* copy = editor.FindPart("copy");
+  ASSERT_NE(copy, nullptr);
+  EXPECT_EQ(copy->Ids(), (std::vector<VertexId>{12, 13, 14, 15}));
+  EXPECT_EQ(copy->num_triangles, 2u);
+  for (int k = 0; k < 4; ++k) {
+    EXPECT_EQ(editor.scene().positions[12 + k],
+              scene_.positions[4 + k] + Eigen::Vector3f(0, 1, 0));
+  }
+  auto missing = ApplySceneEvent((*events)[1], &editor);
+  ASSERT_FALSE(missing.ok());
+  EXPECT_NE(missing.error().find("world/b"), std::string::npos);  // names the parts
 }
 
 }  // namespace
