@@ -282,9 +282,9 @@ TEST(SceneEvents, ParsesTheDocumentedLines) {
   EXPECT_EQ(e[2].source, "world/b");
   EXPECT_EQ(e[3].action, SceneEvent::Action::kRemove);
   EXPECT_EQ(e[3].time_s, 3.25);
-  for (const char* bad : {"1 jump world/b", "1 move world/b 0 0", "2 remove a\n1 remove b",
-                          "1 move a 0 0 0 0 0 0 0", "1 remove a extra", "x remove a",
-                          "1 move a 0 0 nan"}) {
+  for (const char* bad :
+       {"1 jump world/b", "1 move world/b 0 0", "2 remove a\n1 remove b", "1 move a 0 0 0 0 0 0 0",
+        "1 remove a extra", "x remove a", "1 move a 0 0 nan"}) {
     EXPECT_FALSE(ParseSceneEvents(bad).ok()) << bad;
   }
 }
@@ -300,8 +300,7 @@ TEST_F(ScenePartsTest, AnAddEventCopiesALivePart) {
   EXPECT_EQ(copy->Ids(), (std::vector<VertexId>{12, 13, 14, 15}));
   EXPECT_EQ(copy->num_triangles, 2u);
   for (int k = 0; k < 4; ++k) {
-    EXPECT_EQ(editor.scene().positions[12 + k],
-              scene_.positions[4 + k] + Eigen::Vector3f(0, 1, 0));
+    EXPECT_EQ(editor.scene().positions[12 + k], scene_.positions[4 + k] + Eigen::Vector3f(0, 1, 0));
   }
   auto missing = ApplySceneEvent((*events)[1], &editor);
   ASSERT_FALSE(missing.ok());

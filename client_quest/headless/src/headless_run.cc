@@ -266,8 +266,8 @@ Expected<HeadlessResult> RunHeadless(const HeadlessOptions& options) {
   info.foreign_server_messages = result.counters.foreign_server_messages;
   info.map_group = options.map_group;
   info.servers_seen = result.counters.servers_seen;
-  auto metrics =
-      reporting::WriteRunOutputs(options.out_dir, records, map, current_scene, options.camera, info);
+  auto metrics = reporting::WriteRunOutputs(options.out_dir, records, map, current_scene,
+                                            options.camera, info);
   if (!metrics) return metrics.status();
   result.metrics = std::move(*metrics);
   return result;

@@ -161,8 +161,7 @@ std::vector<VertexId> SharedIds(const std::vector<ScenePart>& parts, size_t self
 
 Expected<SceneChange> SceneEditor::RemovePart(const std::string& name) {
   const size_t index = IndexOf(name);
-  if (index == scene_.parts.size())
-    return Expected<SceneChange>::Error(UnknownPart(name));
+  if (index == scene_.parts.size()) return Expected<SceneChange>::Error(UnknownPart(name));
   const ScenePart& part = scene_.parts[index];
   const std::vector<VertexId> shared = SharedIds(scene_.parts, index, UseCounts(part.extra_ids));
   SceneChange change;
