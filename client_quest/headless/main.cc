@@ -5,7 +5,7 @@
 //              [--projector gpu|cpu] [--no-occlusion] [--noise-px S --outlier-ids P --dropout P
 //              --seed N] [--front-end vertex|orb [--orb-features N]] [--key-file FILE
 //              [--encrypt]] [--map-group NAME] [--out DIR]
-//              [--method NAME [--method-config FILE.json]]
+//              [--method NAME [--method-config FILE.json]] [--scene-events FILE]
 //
 // --front-end orb: each frame is rendered (the mesh's textures when it has them) and turned
 // into ORB features with track ids instead of projected vertices; metrics.json then reports
@@ -18,6 +18,9 @@
 //
 // --map-group NAME: the session joins the server's map group NAME (collaborative SLAM: every
 // client of a group shares one map); metrics.json then reports merged_at_s.
+//
+// --scene-events FILE: scripted run-time edits of the scene's parts (move, remove, add a copy;
+// m2s/common/scene_events.h), applied at their times; the CPU projector follows them.
 //
 // Without --mesh / --trajectory it uses the embedded default scene and its trajectory.
 // Prints one summary line (and a progress line while running on a terminal).
@@ -45,6 +48,8 @@ int main(int argc, char** argv) {
   CLI::App app{"Mesh2SLAM headless client: streams vertex features of a scene to a SLAM server"};
   app.add_option("--mesh", options.mesh_path, "Scene mesh (any format assimp reads)");
   app.add_option("--trajectory", options.trajectory_path, "Ground-truth trajectory (TUM)");
+  app.add_option("--scene-events", options.scene_events_path,
+                 "Scripted part edits: lines 'TIME move|remove|add PART ...' (CPU projector)");
   auto* camera_opt = app.add_option("--camera", camera_json, "CAMERA.json");
   auto* width_opt = app.add_option("--width", width, "Image width (px)")->capture_default_str();
   auto* height_opt = app.add_option("--height", height, "Image height (px)")->capture_default_str();

@@ -163,6 +163,23 @@ void MapData::RemovePoint(VertexId id) {
   changes_.removed_points.insert(id);
 }
 
+void MapData::ForgetMovedVertex(VertexId id, KeyframeId since) {
+  RemovePoint(id);
+  auto fit = feature_index_.find(id);
+  if (fit == feature_index_.end()) return;
+  std::vector<KeyframeId>& list = fit->second;
+  for (const KeyframeId kf : list) {
+    if (kf >= since) continue;
+    Keyframe& k = keyframes_.at(kf);
+    const auto at = std::lower_bound(k.ids.begin(), k.ids.end(), id);
+    if (at == k.ids.end() || *at != id) continue;
+    k.uvs.erase(k.uvs.begin() + (at - k.ids.begin()));
+    k.ids.erase(at);
+  }
+  std::erase_if(list, [since](KeyframeId kf) { return kf < since; });
+  if (list.empty()) feature_index_.erase(fit);
+}
+
 bool MapData::AddObservation(VertexId id, KeyframeId kf) {
   ++mutation_count_;
   auto pit = points_.find(id);

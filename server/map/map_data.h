@@ -111,6 +111,9 @@ class MapData {
   // not a mutation.
   void SetPointUncertainty(VertexId id, double uncertainty, bool constrained);
   void RemovePoint(VertexId id);
+  // The vertex `id` moved in the scene (its features in keyframes before `since` show where it
+  // was): removes its point and those features, so that it is mapped anew from `since` on.
+  void ForgetMovedVertex(VertexId id, KeyframeId since);
   // Observation of point `id` by keyframe `kf` (which must have a feature with that id).
   bool AddObservation(VertexId id, KeyframeId kf);
   void RemoveObservation(VertexId id, KeyframeId kf);

@@ -100,8 +100,27 @@ bool LocalMapper::CheckDrift(const KeyframeCandidate& c) {
   // later keyframe and, measured with bench_slam_accuracy (noisy, 30 fps, 60 s), leaves
   // room-s2 at 1.82 mm ATE against 1.30 mm when they merge (default: 1.48 against 1.56 mm).
   if (outcome != DriftOutcome::kDeferred) {
+    // When the map agrees with the keyframe (or was corrected to), an old point that reprojects
+    // far from where the keyframe sees its vertex is not drift: the vertex moved. (Far: a few
+    // times the triangulation bound, so that old points' own errors and noise do not count.)
+    constexpr double kMovedDormantFactor = 4.0;
+    const bool consistent = outcome == DriftOutcome::kAgree || outcome == DriftOutcome::kCorrected;
     map_->Write([&](MapData& m) {
-      for (const VertexId id : c.dormant_points) m.AddObservation(id, c.id);
+      const Keyframe* kf = m.keyframe(c.id);
+      const Pose3 camera_from_world = kf != nullptr ? kf->world_from_camera.Inverse() : Pose3();
+      for (const VertexId id : c.dormant_points) {
+        const MapPoint* p = m.point(id);
+        const Eigen::Vector2d* uv = kf != nullptr ? kf->Find(id) : nullptr;
+        if (consistent && p != nullptr && uv != nullptr) {
+          const Eigen::Vector3d q = camera_from_world * p->position;
+          if (!(q.z() > 0.0) || (model_.camera.Project(q) - *uv).norm() >
+                                    kMovedDormantFactor * checks_.max_reprojection_px) {
+            m.ForgetMovedVertex(id, c.id);
+            continue;
+          }
+        }
+        m.AddObservation(id, c.id);
+      }
       UpdateUncertainty(c.dormant_points, &m);
     });
   } else {
@@ -114,6 +133,11 @@ bool LocalMapper::CheckDrift(const KeyframeCandidate& c) {
 void LocalMapper::Process(const KeyframeCandidate& c, bool backlog) {
   if (!InsertKeyframe(c)) return;
   const bool corrected = CheckDrift(c);
+  if (!c.moved_points.empty()) {
+    map_->Write([&](MapData& m) {
+      for (const VertexId id : c.moved_points) m.ForgetMovedVertex(id, c.id);
+    });
+  }
   ExtendPoints(c);
   TriangulateNewPoints(c.id);
   const bool young = map_->Read([](const MapData& m) { return IsYoungMap(m); });

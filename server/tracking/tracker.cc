@@ -3,18 +3,18 @@
 #include <algorithm>
 #include <cmath>
 
-#include <opencv2/calib3d.hpp>
-#include <opencv2/core/eigen.hpp>
-
-#include "m2s/common/logging.h"
 #include "m2s/common/numeric.h"
 #include "optimization/problems.h"
-#include "tracking/rotation_only.h"
+#include "tracking/tracker_internal.h"
 
 namespace m2s::slam {
+
+using tracker_internal::kMinPoseInliers;
+using tracker_internal::kSparseViewInlierFraction;
+using tracker_internal::MakePoseOptions;
+
 namespace {
 
-constexpr int kMaxPnpPoints = 500;  // RANSAC input, subsampled evenly beyond this
 // Dormant points join tracking when the recent points' truncated cost at the joint pose exceeds
 // their own optimum by at most chi2(6 dof, 99.9 %) plus this much per recent inlier (map noise
 // in the recent points makes them fit their own pose a little better than the noise alone).
@@ -27,52 +27,14 @@ constexpr int kRetryRounds = 10;
 // Below this fraction of the reference keyframe's points, a keyframe is made even when mapping
 // is busy.
 constexpr double kCriticalTrackedRatio = 0.5;
-constexpr int kPnpIterations = 200;
-// A view with fewer associated points than TrackerOptions::min_inliers is tracked when this
-// fraction of them, and at least kMinPoseInliers, are inliers.
-constexpr double kSparseViewInlierFraction = 0.75;
-constexpr int kMinPoseInliers = 12;
-constexpr double kPnpThresholdSigmas = 4.0;
-// Rotation-only tracking: a keyframe when the frame shares less than this fraction of the
-// reference keyframe's features (the view has turned away from it).
-constexpr double kRotationKeyframeOverlap = 0.5;
+// Frames in a row a map point must outlie before its vertex counts as moved.
+constexpr int kMovedPointFrames = 3;
+// ... and reproject this many times the inlier bound away from its feature (a point triangulated
+// over a short baseline outlies by a little, frame after frame; a moved vertex by far more).
+constexpr double kMovedPointFactor = 4.0;
 // Keyframes for unmapped features need some baseline (fraction of keyframe_baseline_ratio),
 // or the same features would ask for a keyframe on every frame.
 constexpr double kNewPointsBaselineFraction = 0.5;
-
-// camera_from_world by PnP + RANSAC (OpenCV); nullopt when RANSAC finds no pose or OpenCV
-// throws on degenerate input (logged: a failed relocalisation, never a thrown frame).
-std::optional<Pose3> SolvePnpRansac(const Camera& camera, double threshold_px,
-                                    const std::vector<cv::Point3d>& object,
-                                    const std::vector<cv::Point2d>& image,
-                                    std::vector<int>* inliers) {
-  try {
-    cv::Mat k_cv, rvec, tvec;
-    cv::eigen2cv(camera.K(), k_cv);
-    if (!cv::solvePnPRansac(object, image, k_cv, cv::noArray(), rvec, tvec, false, kPnpIterations,
-                            threshold_px, 0.999, *inliers, cv::SOLVEPNP_AP3P)) {
-      return std::nullopt;
-    }
-    cv::Mat r_cv;
-    cv::Rodrigues(rvec, r_cv);
-    Eigen::Matrix3d r;
-    Eigen::Vector3d t;
-    cv::cv2eigen(r_cv, r);
-    cv::cv2eigen(tvec, t);
-    return Pose3(r, t);
-  } catch (const cv::Exception& e) {
-    M2S_LOG(kWarning) << "relocalisation: OpenCV error: " << e.what();
-    inliers->clear();
-    return std::nullopt;
-  }
-}
-
-PoseOnlyOptions MakePoseOptions(const MeasurementModel& model) {
-  PoseOnlyOptions p;
-  p.pixel_sigma = model.pixel_sigma;
-  p.huber_delta_px = std::sqrt(kChi2TwoDof95) * model.pixel_sigma;
-  return p;
-}
 
 }  // namespace
 
@@ -278,82 +240,6 @@ bool Tracker::TrackWithModel(const Association& a, Pose3* camera_from_world,
   return Classify(a, pose, true, inlier) >= required_active;
 }
 
-bool Tracker::Relocalise(const Association& a, Pose3* camera_from_world,
-                         std::vector<bool>* inlier) {
-  const int n = static_cast<int>(a.ids.size());
-  const int required = RequiredInliers(n);
-  if (n < required) return false;
-  std::vector<cv::Point3d> object;
-  std::vector<cv::Point2d> image;
-  const std::vector<size_t> usable = PoseSolvingPoints(a, /*skip_dormant=*/false);
-  if (static_cast<int>(usable.size()) < required) return false;
-  for (const size_t k : EvenlySpacedIndices(usable.size(), kMaxPnpPoints)) {
-    const size_t i = usable[k];
-    object.emplace_back(a.points[i].x(), a.points[i].y(), a.points[i].z());
-    image.emplace_back(a.uvs[i].x(), a.uvs[i].y());
-  }
-  std::vector<int> pnp_inliers;
-  const std::optional<Pose3> solved = SolvePnpRansac(
-      model_.camera, kPnpThresholdSigmas * model_.pixel_sigma, object, image, &pnp_inliers);
-  if (!solved || static_cast<int>(pnp_inliers.size()) < required / 2) return false;
-  Pose3 pose = *solved;
-  // Refine on the PnP inliers, then classify every associated point.
-  std::vector<Eigen::Vector3d> points;
-  std::vector<Eigen::Vector2d> uvs;
-  for (const int i : pnp_inliers) {
-    points.emplace_back(object[i].x, object[i].y, object[i].z);
-    uvs.emplace_back(image[i].x, image[i].y);
-  }
-  const PoseOnlyResult refined =
-      OptimizePose(model_.camera, MakePoseOptions(model_), points, uvs, &pose);
-  if (!pose.AllFinite() || refined.num_inliers < required / 2) return false;
-  *camera_from_world = pose;
-  const int classified = Classify(a, pose, /*skip_dormant=*/false, inlier);
-  // Exact association: every associated point is the vertex the frame sees, so a pose that
-  // leaves most of them unexplained is an ambiguity of a weak point set (a distant or bunched
-  // object fits a wrong pose within the RANSAC bound), not the camera's pose.
-  return classified >= required && 2 * classified >= n;
-}
-
-bool Tracker::TrackRotationOnly(const SortedFeatures& features, const Association& a,
-                                Pose3* camera_from_world, std::vector<bool>* inlier,
-                                bool* keyframe) {
-  if (!reference_kf_ || !a.reference_pose) return false;
-  const double max_error_px = std::sqrt(kChi2TwoDof95) * model_.pixel_sigma;
-  std::optional<RotationOnlyPose> r;
-  size_t keyframe_features = 0;
-  map_->Read([&](const MapData& m) {
-    const Keyframe* kf = m.keyframe(*reference_kf_);
-    const std::vector<VertexId>& ids = kf != nullptr ? kf->ids : reference_features_.ids;
-    const std::vector<Eigen::Vector2d>& uvs = kf != nullptr ? kf->uvs : reference_features_.uvs;
-    keyframe_features = ids.size();
-    r = SolveRotationOnly(model_.camera, max_error_px, *a.reference_pose, ids, uvs, features);
-  });
-  if (!r || r->inliers < kMinPoseInliers ||
-      r->inliers < kSparseViewInlierFraction * static_cast<double>(r->shared)) {
-    return false;
-  }
-  // The map points in view must agree with the rotation, when there are enough to judge (a
-  // handful of fresh, noisy points does not outvote a thousand bearings).
-  const int fitting = Classify(a, r->camera_from_world, /*skip_dormant=*/false, inlier);
-  if (static_cast<int>(a.ids.size()) >= kMinPoseInliers &&
-      fitting < kSparseViewInlierFraction * static_cast<double>(a.ids.size())) {
-    return false;
-  }
-  *camera_from_world = r->camera_from_world;
-  *keyframe = r->inliers < kRotationKeyframeOverlap * static_cast<double>(keyframe_features);
-  return true;
-}
-
-int Tracker::RequiredInliers(int num_points) const {
-  // Exact association has no ambiguous matches: a sparse view's pose rests on most of the
-  // points it sees, not on a fixed count it may never reach.
-  const int from_view =
-      static_cast<int>(std::ceil(kSparseViewInlierFraction * static_cast<double>(num_points)));
-  return std::clamp(from_view, std::min(kMinPoseInliers, options_.min_inliers),
-                    options_.min_inliers);
-}
-
 int Tracker::Classify(const Association& a, const Pose3& camera_from_world, bool skip_dormant,
                       std::vector<bool>* inlier) const {
   const double max_err_sq = kChi2TwoDof95 * model_.pixel_sigma * model_.pixel_sigma;
@@ -455,6 +341,20 @@ TrackerOutput Tracker::Track(int64_t seq, double timestamp, const SortedFeatures
   for (size_t i = 0; i < inlier.size(); ++i) num_inliers += inlier[i] ? 1 : 0;
   for (size_t i = 0; i < a.ids.size(); ++i) dormant_inliers += a.dormant[i] ? 1 : 0;
   out.num_inliers = num_inliers;
+  // A point far off in consecutive frames whose poses the rest supports has moved (a wrong id
+  // or a noisy feature is one frame's).
+  const double moved_err_sq = kMovedPointFactor * kMovedPointFactor * kChi2TwoDof95 *
+                              model_.pixel_sigma * model_.pixel_sigma;
+  std::unordered_map<VertexId, int> streak;
+  for (size_t i = 0; i < a.ids.size(); ++i) {
+    if (a.dormant[i] || inlier[i]) continue;
+    const Eigen::Vector3d pc = camera_from_world * a.points[i];
+    if (pc.z() > 0.0 && (model_.camera.Project(pc) - a.uvs[i]).squaredNorm() <= moved_err_sq)
+      continue;
+    const auto it = outlier_streak_.find(a.ids[i]);
+    streak[a.ids[i]] = it == outlier_streak_.end() ? 1 : it->second + 1;
+  }
+  outlier_streak_ = std::move(streak);
   if (reference_kf_ && a.reference_pose) {
     out.reference_keyframe = reference_kf_;
     out.reference_from_camera = a.reference_pose->Inverse() * out.world_from_camera;
@@ -490,6 +390,10 @@ TrackerOutput Tracker::Track(int64_t seq, double timestamp, const SortedFeatures
       tracked_positions.push_back(a.points[i]);
     }
   }
+  for (const auto& [id, frames] : outlier_streak_) {
+    if (frames >= kMovedPointFrames) kf.moved_points.push_back(id);
+  }
+  std::sort(kf.moved_points.begin(), kf.moved_points.end());
   if (!tracked_positions.empty()) {
     last_keyframe_median_depth_ = MedianDepth(camera_from_world, tracked_positions);
   }

@@ -22,6 +22,7 @@
 #pragma once
 
 #include <optional>
+#include <unordered_map>
 #include <vector>
 
 #include "m2s/slam/system.h"
@@ -40,6 +41,9 @@ struct KeyframeCandidate {
   SortedFeatures features;
   std::vector<VertexId> tracked_points;  // map points that were pose inliers
   std::vector<VertexId> dormant_points;  // map points re-observed after a long gap
+  // Map points that were pose outliers in every one of the last kMovedPointFrames tracked
+  // frames: their vertex moved (a part of the scene moved), so the mapper maps them anew.
+  std::vector<VertexId> moved_points;
   // Map::correction().epoch the pose is expressed in (a drift correction published while the
   // candidate waits in the mapping queue moves the world under it).
   uint64_t correction_epoch = 0;
@@ -146,6 +150,8 @@ class Tracker {
   double last_keyframe_median_depth_ = 1.0;
   // The reference keyframe's features, for rotation-only tracking while it waits for mapping.
   SortedFeatures reference_features_;
+  // Consecutive tracked frames in which each associated map point was a pose outlier.
+  std::unordered_map<VertexId, int> outlier_streak_;
 };
 
 }  // namespace m2s::slam

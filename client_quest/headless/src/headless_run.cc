@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cstdio>
 #include <iostream>
+#include <optional>
 #include <thread>
 
 #include "m2s/client/client_session.h"
@@ -12,6 +13,8 @@
 #include "m2s/common/cpu_projector.h"
 #include "m2s/common/logging.h"
 #include "m2s/common/scene.h"
+#include "m2s/common/scene_editor.h"
+#include "m2s/common/scene_events.h"
 #include "m2s/common/trajectory.h"
 #include "m2s/gpu/projector_factory.h"
 #include "m2s/headless/orb_frame_source.h"
@@ -110,6 +113,14 @@ Expected<HeadlessResult> RunHeadless(const HeadlessOptions& options) {
   if (options.send_budget < 0) return Status::Error("send_budget must be >= 0 (0: all)");
   if (Status s = CheckFrontEnd(options); !s) return s;
 
+  std::vector<SceneEvent> events;
+  if (!options.scene_events_path.empty()) {
+    if (options.front_end != "vertex")
+      return Status::Error("--scene-events needs the vertex front end");
+    auto read = ReadSceneEvents(options.scene_events_path);
+    if (!read) return read.status();
+    events = std::move(*read);
+  }
   auto loaded_scene = LoadSceneOrDefault(options.mesh_path);
   if (!loaded_scene) return loaded_scene.status();
   Scene scene = std::move(*loaded_scene);
@@ -125,6 +136,18 @@ Expected<HeadlessResult> RunHeadless(const HeadlessOptions& options) {
   std::string projector_name;
   auto frame_maker = CreateFrameMaker(options, scene, &result.notice, &projector_name);
   if (!frame_maker) return frame_maker.status();
+  // Scene events: the editor owns the scene from here on, the CPU projector follows it.
+  std::optional<SceneEditor> editor;
+  CpuProjector* followed = nullptr;
+  const Scene* current_scene = &scene;
+  size_t next_event = 0;
+  if (!options.scene_events_path.empty()) {
+    followed = dynamic_cast<CpuProjector*>(frame_maker->projector.get());
+    if (followed == nullptr)
+      return Status::Error("--scene-events needs the CPU projector (--projector cpu)");
+    editor.emplace(std::move(scene));
+    current_scene = &editor->scene();
+  }
 
   std::unique_ptr<client::Transport> transport;
   if (options.on_device) {
@@ -164,6 +187,14 @@ Expected<HeadlessResult> RunHeadless(const HeadlessOptions& options) {
   int64_t last_seq = 0;
   for (size_t k = 0; k < num_frames; ++k) {
     const TimedPose& pose = (*resampled)[k];
+    for (; next_event < events.size() &&
+           events[next_event].time_s <= pose.timestamp - (*resampled)[0].timestamp;
+         ++next_event) {
+      const auto change = ApplySceneEvent(events[next_event], &*editor);
+      const Status applied =
+          change ? followed->ApplyChange(editor->scene(), *change) : change.status();
+      if (!applied) return applied.Prefixed("scene event " + std::to_string(next_event + 1) + ": ");
+    }
     if (!options.fast) {
       const auto due = start + std::chrono::duration_cast<Clock::duration>(period * k);
       const auto now = Clock::now();
@@ -229,8 +260,8 @@ Expected<HeadlessResult> RunHeadless(const HeadlessOptions& options) {
   info.foreign_server_messages = result.counters.foreign_server_messages;
   info.map_group = options.map_group;
   info.servers_seen = result.counters.servers_seen;
-  auto metrics =
-      reporting::WriteRunOutputs(options.out_dir, records, map, &scene, options.camera, info);
+  auto metrics = reporting::WriteRunOutputs(options.out_dir, records, map, current_scene,
+                                            options.camera, info);
   if (!metrics) return metrics.status();
   result.metrics = std::move(*metrics);
   return result;

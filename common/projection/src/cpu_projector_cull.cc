@@ -24,20 +24,37 @@ CullGroup BoxOf(uint32_t begin, uint32_t end) {
 }
 
 void Extend(CullGroup* group, float x, float y, float z) {
+  if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z)) return;
   group->min = group->min.cwiseMin(Eigen::Vector3f(x, y, z));
   group->max = group->max.cwiseMax(Eigen::Vector3f(x, y, z));
 }
 
 }  // namespace
 
+CullGroup BoxVertices(const float* x, const float* y, const float* z, uint32_t begin,
+                      uint32_t end) {
+  CullGroup group = BoxOf(begin, end);
+  for (size_t i = begin; i < end; ++i) Extend(&group, x[i], y[i], z[i]);
+  return group;
+}
+
+CullGroup BoxTriangles(const std::vector<uint32_t>& triangles, const float* x, const float* y,
+                       const float* z, uint32_t begin, uint32_t end) {
+  CullGroup group = BoxOf(begin, end);
+  for (size_t i = 3 * size_t{begin}; i < 3 * size_t{end}; ++i) {
+    const uint32_t v = triangles[i];
+    Extend(&group, x[v], y[v], z[v]);
+  }
+  return group;
+}
+
 std::vector<CullGroup> MakeVertexGroups(const float* x, const float* y, const float* z, size_t n,
                                         size_t group_size) {
   std::vector<CullGroup> groups;
   for (size_t begin = 0; begin < n; begin += group_size) {
     const size_t end = std::min(n, begin + group_size);
-    CullGroup group = BoxOf(static_cast<uint32_t>(begin), static_cast<uint32_t>(end));
-    for (size_t i = begin; i < end; ++i) Extend(&group, x[i], y[i], z[i]);
-    groups.push_back(group);
+    groups.push_back(
+        BoxVertices(x, y, z, static_cast<uint32_t>(begin), static_cast<uint32_t>(end)));
   }
   return groups;
 }
@@ -48,12 +65,8 @@ std::vector<CullGroup> MakeTriangleGroups(const std::vector<uint32_t>& triangles
   const size_t n = triangles.size() / 3;
   for (size_t begin = 0; begin < n; begin += group_size) {
     const size_t end = std::min(n, begin + group_size);
-    CullGroup group = BoxOf(static_cast<uint32_t>(begin), static_cast<uint32_t>(end));
-    for (size_t i = 3 * begin; i < 3 * end; ++i) {
-      const uint32_t v = triangles[i];
-      Extend(&group, x[v], y[v], z[v]);
-    }
-    groups.push_back(group);
+    groups.push_back(
+        BoxTriangles(triangles, x, y, z, static_cast<uint32_t>(begin), static_cast<uint32_t>(end)));
   }
   return groups;
 }
@@ -120,6 +133,7 @@ ScreenBox FrustumCuller::Footprint(const CullGroup& group, int buffer_width,
 }
 
 bool FrustumCuller::MayBeVisible(const CullGroup& group) const {
+  if (!(group.min.array() <= group.max.array()).all()) return false;  // empty
   Eigen::Vector3d corners[8];
   Corners(group, corners);
   for (const Eigen::Vector4d& plane : planes_) {

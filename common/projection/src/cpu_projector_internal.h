@@ -188,6 +188,12 @@ struct CullGroup {
   Eigen::Vector3f max = Eigen::Vector3f::Zero();
 };
 
+// The box of vertices [begin, end) (non-finite ones, retired vertices, left out; no finite
+// vertex gives an empty box: min > max).
+CullGroup BoxVertices(const float* x, const float* y, const float* z, uint32_t begin, uint32_t end);
+// The box of the corners of triangles [begin, end).
+CullGroup BoxTriangles(const std::vector<uint32_t>& triangles, const float* x, const float* y,
+                       const float* z, uint32_t begin, uint32_t end);
 // Groups of group_size consecutive vertices (the last one shorter).
 std::vector<CullGroup> MakeVertexGroups(const float* x, const float* y, const float* z, size_t n,
                                         size_t group_size);
@@ -212,6 +218,7 @@ struct ScreenBox {
 // A conservative frustum test: MayBeVisible() is false only when no point of the box lies at
 // near <= Z <= far with (u, v) within margin_px of the image (checked against the box's
 // corners, in double, so the float kernel's rounding can never make a culled vertex visible).
+// An empty box (min > max) is never visible.
 class FrustumCuller {
  public:
   FrustumCuller(const Pose3& world_from_camera, const Camera& camera, double margin_px);

@@ -133,7 +133,13 @@ class RoomBuilder {
 
   Scene Build() && {
     builder_.Canonicalize();
-    return std::move(builder_).Build("default_room");
+    Scene scene = std::move(builder_).Build("default_room");
+    ScenePart room;
+    room.name = "room";
+    room.num_triangles = static_cast<uint32_t>(scene.num_triangles());
+    room.end_vertex = static_cast<VertexId>(scene.num_vertices());
+    scene.parts.push_back(std::move(room));
+    return scene;
   }
 
  private:

@@ -1,10 +1,12 @@
 // Scene loading with assimp; see scene.h for the id order.
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <optional>
 #include <string>
 #include <system_error>
+#include <unordered_map>
 #include <vector>
 
 #include <assimp/postprocess.h>
@@ -24,6 +26,8 @@ struct Loader {
   Eigen::Vector3d translation;
   internal::SceneBuilder builder;
   bool non_finite = false;
+  std::vector<ScenePart> parts;
+  std::unordered_map<std::string, int> name_uses;
 
   VertexId Add(const aiMatrix4x4& node_transform, const aiVector3D& p) {
     const aiVector3D q = node_transform * p;
@@ -33,12 +37,32 @@ struct Loader {
     return builder.Add(f);
   }
 
-  void AddMesh(const aiMatrix4x4& transform, const aiMesh& mesh) {
+  // A part per (node, mesh) visit: the new ids and triangles of the visit, and the earlier
+  // ids its corners merged into.
+  void AddPart(const std::string& name, const aiMatrix4x4& transform, const aiMesh& mesh) {
+    ScenePart part;
+    const int uses = ++name_uses[name];
+    part.name = uses == 1 ? name : name + "~" + std::to_string(uses);
+    part.first_triangle = static_cast<uint32_t>(builder.num_triangles());
+    part.first_vertex = static_cast<VertexId>(builder.num_vertices());
+    AddMesh(transform, mesh, &part.extra_ids);
+    part.num_triangles = static_cast<uint32_t>(builder.num_triangles()) - part.first_triangle;
+    part.end_vertex = static_cast<VertexId>(builder.num_vertices());
+    std::sort(part.extra_ids.begin(), part.extra_ids.end());
+    part.extra_ids.erase(std::unique(part.extra_ids.begin(), part.extra_ids.end()),
+                         part.extra_ids.end());
+    part.extra_ids.shrink_to_fit();
+    parts.push_back(std::move(part));
+  }
+
+  void AddMesh(const aiMatrix4x4& transform, const aiMesh& mesh, std::vector<VertexId>* earlier) {
+    const auto first_new = static_cast<VertexId>(builder.num_vertices());
     std::vector<VertexId> ids(mesh.mNumVertices);
     std::vector<bool> seen(mesh.mNumVertices, false);
     auto id_of = [&](unsigned int index) {
       if (!seen[index]) {
         ids[index] = Add(transform, mesh.mVertices[index]);
+        if (ids[index] < first_new) earlier->push_back(ids[index]);
         seen[index] = true;
       }
       return ids[index];
@@ -62,18 +86,24 @@ struct Loader {
     struct Item {
       const aiNode* node;
       aiMatrix4x4 parent;
+      std::string parent_path;
     };
-    std::vector<Item> stack = {{&root, aiMatrix4x4()}};
+    std::vector<Item> stack = {{&root, aiMatrix4x4(), ""}};
     for (size_t visits = 0; !stack.empty(); ++visits) {
       if (visits >= kMaxNodeVisits) return false;
-      const Item item = stack.back();
+      const Item item = std::move(stack.back());
       stack.pop_back();
       const aiMatrix4x4 transform = item.parent * item.node->mTransformation;
+      std::string path = item.parent_path;
+      if (!path.empty()) path.push_back('/');
+      path.append(item.node->mName.data, item.node->mName.length);
       for (unsigned int m = 0; m < item.node->mNumMeshes; ++m) {
-        AddMesh(transform, *ai.mMeshes[item.node->mMeshes[m]]);
+        std::string name = path;
+        if (item.node->mNumMeshes > 1) name.append("#").append(std::to_string(m));
+        AddPart(name, transform, *ai.mMeshes[item.node->mMeshes[m]]);
       }
       for (unsigned int c = item.node->mNumChildren; c-- > 0;) {
-        stack.push_back({item.node->mChildren[c], transform});
+        stack.push_back({item.node->mChildren[c], transform, path});
       }
     }
     return true;
@@ -213,6 +243,9 @@ Expected<Scene> ParseScene(const std::string& path, const SceneLoadOptions& opti
   Loader loader{*ai,
                 options.scale * options.rotation.normalized().toRotationMatrix(),
                 options.translation,
+                {},
+                false,
+                {},
                 {}};
   size_t vertices_in_meshes = 0;  // a hint: instanced meshes count once
   for (unsigned int m = 0; m < ai->mNumMeshes; ++m)
@@ -225,7 +258,9 @@ Expected<Scene> ParseScene(const std::string& path, const SceneLoadOptions& opti
   if (loader.builder.num_vertices() == 0) {
     return Expected<Scene>::Error(where + "no vertices (meshes are empty or not used by any node)");
   }
-  return std::move(loader.builder).Build(fs_path.stem().string());
+  Scene scene = std::move(loader.builder).Build(fs_path.stem().string());
+  scene.parts = std::move(loader.parts);
+  return scene;
 }
 
 }  // namespace

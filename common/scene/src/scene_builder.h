@@ -47,6 +47,7 @@ class SceneBuilder {
     triangles_.insert(triangles_.end(), {a, b, c});
   }
   size_t num_vertices() const { return positions_.size(); }
+  size_t num_triangles() const { return triangles_.size() / 3; }
 
   // Renumbers ids into LoadScene order: first use in triangle order, then unused vertices.
   void Canonicalize() {

@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
@@ -18,7 +19,7 @@ namespace fs = std::filesystem;
 
 constexpr char kMagic[8] = {'M', '2', 'S', 'S', 'C', 'E', 'N', 'E'};
 // Bumped whenever LoadScene's id order or this format changes: old entries are then ignored.
-constexpr uint32_t kVersion = 1;
+constexpr uint32_t kVersion = 2;                // 2: parts
 constexpr size_t kReadChunk = size_t{1} << 24;  // 16 MiB
 // Entries above this are refused on read (a corrupt header must not trigger a huge allocation).
 constexpr uint64_t kMaxElements = uint64_t{1} << 32;
@@ -57,6 +58,60 @@ uint64_t PayloadChecksum(const Scene& scene) {
   const uint64_t h =
       HashBytes(scene.positions.data(), scene.positions.size() * sizeof(float) * 3, 0x5ce9e5ULL);
   return HashBytes(scene.triangles.data(), scene.triangles.size() * sizeof(uint32_t), h);
+}
+
+void PutIds(std::ofstream& out, const std::vector<VertexId>& ids) {
+  Put(out, static_cast<uint64_t>(ids.size()));
+  out.write(reinterpret_cast<const char*>(ids.data()),
+            static_cast<std::streamsize>(ids.size() * sizeof(VertexId)));
+}
+
+bool GetIds(std::ifstream& in, uint64_t max_id, std::vector<VertexId>* ids) {
+  uint64_t count = 0;
+  if (!Get(in, &count) || count > max_id) return false;
+  ids->resize(count);
+  if (!in.read(reinterpret_cast<char*>(ids->data()),
+               static_cast<std::streamsize>(count * sizeof(VertexId))))
+    return false;
+  for (VertexId id : *ids)
+    if (id >= max_id) return false;
+  return true;
+}
+
+// Parts: count, then per part its name, triangle range, id range, extra and given ids.
+void PutParts(std::ofstream& out, const std::vector<ScenePart>& parts) {
+  Put(out, static_cast<uint64_t>(parts.size()));
+  for (const ScenePart& part : parts) {
+    const auto name_bytes = static_cast<uint32_t>(std::min<size_t>(part.name.size(), 4096));
+    Put(out, name_bytes);
+    out.write(part.name.data(), name_bytes);
+    for (uint32_t value :
+         {part.first_triangle, part.num_triangles, part.first_vertex, part.end_vertex})
+      Put(out, value);
+    PutIds(out, part.extra_ids);
+    PutIds(out, part.given_ids);
+  }
+}
+
+bool GetParts(std::ifstream& in, const Scene& scene, std::vector<ScenePart>* parts) {
+  uint64_t count = 0;
+  if (!Get(in, &count) || count > scene.num_vertices() + scene.num_triangles() + 1) return false;
+  parts->resize(count);
+  for (ScenePart& part : *parts) {
+    uint32_t name_bytes = 0;
+    if (!Get(in, &name_bytes) || name_bytes > 4096) return false;
+    part.name.resize(name_bytes);
+    if (!in.read(part.name.data(), name_bytes) || !Get(in, &part.first_triangle) ||
+        !Get(in, &part.num_triangles) || !Get(in, &part.first_vertex) || !Get(in, &part.end_vertex))
+      return false;
+    if (uint64_t{part.first_triangle} + part.num_triangles > scene.num_triangles() ||
+        part.first_vertex > part.end_vertex || part.end_vertex > scene.num_vertices())
+      return false;
+    if (!GetIds(in, scene.num_vertices(), &part.extra_ids) ||
+        !GetIds(in, scene.num_vertices(), &part.given_ids))
+      return false;
+  }
+  return true;
 }
 
 }  // namespace
@@ -143,6 +198,7 @@ std::optional<Scene> ReadSceneCache(const std::string& dir, uint64_t key, uint64
       !in.read(reinterpret_cast<char*>(scene.triangles.data()),
                static_cast<std::streamsize>(indices * sizeof(uint32_t))))
     return damaged("truncated payload");
+  if (!GetParts(in, scene, &scene.parts)) return damaged("bad parts");
   uint64_t checksum = 0;
   if (!Get(in, &checksum) || checksum != PayloadChecksum(scene)) return damaged("bad checksum");
   for (uint32_t index : scene.triangles)
@@ -172,6 +228,7 @@ void WriteSceneCache(const std::string& dir, uint64_t key, uint64_t source_size,
               static_cast<std::streamsize>(scene.positions.size() * 3 * sizeof(float)));
     out.write(reinterpret_cast<const char*>(scene.triangles.data()),
               static_cast<std::streamsize>(scene.triangles.size() * sizeof(uint32_t)));
+    PutParts(out, scene.parts);
     Put(out, PayloadChecksum(scene));
     out.close();
     if (!out) {

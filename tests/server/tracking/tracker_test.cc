@@ -44,6 +44,24 @@ void AddPoints(const Camera& camera, int n, VertexId first_id, bool old, double 
   }
 }
 
+// Recent and old points over the whole image, and the map positions with the old part of the
+// map shifted by `drift` (a map that drifted before the recent keyframes).
+struct DriftedScene {
+  Scene scene;
+  std::vector<Eigen::Vector3d> mapped;
+};
+DriftedScene RecentAndDriftedOldPoints(const Camera& camera, int recent, int old,
+                                       const Eigen::Vector3d& drift, std::mt19937* rng) {
+  DriftedScene d;
+  AddPoints(camera, recent, 0, false, 10, 630, 10, 470, rng, &d.scene);
+  AddPoints(camera, old, kFirstOldId, true, 10, 630, 10, 470, rng, &d.scene);
+  d.mapped = d.scene.true_points;
+  for (size_t i = 0; i < d.mapped.size(); ++i) {
+    if (d.scene.old[i]) d.mapped[i] += drift;
+  }
+  return d;
+}
+
 Options TestOptions() {
   Options options;
   options.camera = Camera::FromHorizontalFov(640, 480, 90.0);
@@ -201,14 +219,8 @@ TEST(Tracker, DriftedDormantPointsAreLeftOut) {
   // the pose follows the recent points (the drift check in mapping deals with the old ones).
   const Options options = TestOptions();
   std::mt19937 rng(11);
-  Scene scene;
-  AddPoints(options.camera, 300, 0, false, 10, 630, 10, 470, &rng, &scene);
-  AddPoints(options.camera, 900, kFirstOldId, true, 10, 630, 10, 470, &rng, &scene);
-  const Eigen::Vector3d drift(0.04, 0.0, 0.0);
-  std::vector<Eigen::Vector3d> mapped = scene.true_points;
-  for (size_t i = 0; i < mapped.size(); ++i) {
-    if (scene.old[i]) mapped[i] += drift;
-  }
+  const auto [scene, mapped] =
+      RecentAndDriftedOldPoints(options.camera, 300, 900, Eigen::Vector3d(0.04, 0.0, 0.0), &rng);
   Map map;
   InsertScene(
       scene, options.camera, [&](size_t i) { return mapped[i]; }, &map);
@@ -234,13 +246,8 @@ TEST(Tracker, SparseViewFollowsItsRecentPointsWhenDormantOnesDisagree) {
   // dense view. The frame is not lost.
   const Options options = TestOptions();
   std::mt19937 rng(13);
-  Scene scene;
-  AddPoints(options.camera, 26, 0, false, 10, 630, 10, 470, &rng, &scene);
-  AddPoints(options.camera, 20, kFirstOldId, true, 10, 630, 10, 470, &rng, &scene);
-  std::vector<Eigen::Vector3d> mapped = scene.true_points;
-  for (size_t i = 0; i < mapped.size(); ++i) {
-    if (scene.old[i]) mapped[i] += Eigen::Vector3d(0.04, 0.0, 0.0);
-  }
+  const auto [scene, mapped] =
+      RecentAndDriftedOldPoints(options.camera, 26, 20, Eigen::Vector3d(0.04, 0.0, 0.0), &rng);
   Map map;
   InsertScene(
       scene, options.camera, [&](size_t i) { return mapped[i]; }, &map);

@@ -32,6 +32,10 @@ inline constexpr double kOrbPixelSigma = 0.7;
 struct HeadlessOptions {
   std::string mesh_path;        // empty: MakeDefaultScene()
   std::string trajectory_path;  // TUM; empty: DefaultTrajectory()
+  // Scripted edits of the scene's parts (m2s/common/scene_events.h), applied before the first
+  // frame at or after their time; needs the vertex front end and the CPU projector. The run's
+  // map error is then measured against the positions at the end.
+  std::string scene_events_path;
   Camera camera = Camera::FromHorizontalFov(640, 480, 90.0);
   double fps = 75.0;
   bool fast = false;

@@ -15,6 +15,9 @@
 // projector (contiguous id ranges, so the output is identical for any thread count and is
 // sorted by id). No allocation per frame in steady state.
 //
+// Scene edits. ApplyChange() follows SceneEditor's add / remove / move of parts: retired
+// vertices are never projected, moved ones are projected at their new place with their ids.
+//
 // Culling. Vertices are grouped in runs of 4096 consecutive ids (ids follow the meshes and
 // their faces, so a run is spatially compact) and triangles in runs of 4096, each group with
 // its bounding box. A frame first tests the boxes against the view frustum (conservatively,
@@ -61,6 +64,7 @@
 
 #include "m2s/common/projector.h"
 #include "m2s/common/scene.h"
+#include "m2s/common/scene_editor.h"
 
 namespace m2s {
 
@@ -71,6 +75,14 @@ class CpuProjector final : public Projector {
   static Expected<std::unique_ptr<CpuProjector>> Create(const Scene& scene,
                                                         const ProjectorOptions& options);
   ~CpuProjector() override;
+
+  // Follows an edit of its scene (scene_editor.h): `scene` is the edited scene and `change`
+  // what the edit returned; apply every change, in order. Copies the new and moved positions,
+  // hides the retired vertices (never projected again) and the changed triangles, and re-boxes
+  // only the culling groups they fall in (no full rebuild). The output is then exactly that of
+  // a projector created from the edited scene. Fails, changing nothing, when the change does
+  // not follow the projector's scene.
+  Status ApplyChange(const Scene& scene, const SceneChange& change);
 
   // Fails (with `out` cleared) on a bad camera, a non-finite pose or a null `out`.
   Status Project(const Pose3& world_from_camera, const Camera& camera,

@@ -3,6 +3,8 @@
 // Every distinct 3-D position has exactly one VertexId, dense from 0. Ids are assigned in a
 // documented, deterministic order (see LoadScene) so the same file gives the same ids on every
 // run and machine. Triangles index into `positions` and are kept for rendering and occlusion.
+// The scene keeps its parts (one per mesh instance of the file's node graph); SceneEditor
+// (scene_editor.h) adds, removes and moves parts at run time.
 #pragma once
 
 #include <cstdint>
@@ -17,10 +19,41 @@
 
 namespace m2s {
 
+// One part of a scene: a mesh placed by one node of the file's graph (a mesh instanced by
+// three nodes gives three parts, each with its own ids), or a part added at run time.
+// Its vertices are the ids [first_vertex, end_vertex) it introduced, less `given_ids`, plus
+// `extra_ids`; its triangles are triangles [first_triangle, first_triangle + num_triangles)
+// of Scene::triangles. Ids are implicit (a range), so a part costs no memory per vertex
+// except for the few ids it shares with another part (4 bytes each).
+struct ScenePart {
+  // The node path from the root, names joined by '/', then "#k" for the k-th mesh of a node
+  // with several meshes; "~2", "~3"... when the path is already taken. Unique in a scene.
+  std::string name;
+  uint32_t first_triangle = 0;
+  uint32_t num_triangles = 0;
+  VertexId first_vertex = 0;
+  VertexId end_vertex = 0;
+  // Sorted. Ids outside the range the part uses: corners at exactly the position of a vertex
+  // an earlier part introduced (LoadScene merges them), or ids given to it when it moved.
+  std::vector<VertexId> extra_ids;
+  // Sorted. Ids of the range it no longer uses (it moved away from a vertex it shared).
+  std::vector<VertexId> given_ids;
+
+  bool Uses(VertexId id) const;
+  // Every id of the part, ascending.
+  std::vector<VertexId> Ids() const;
+};
+
 struct Scene {
   std::string name;
   std::vector<Eigen::Vector3f> positions;  // world coordinates (metres); index == VertexId
   std::vector<uint32_t> triangles;         // 3 indices per triangle into positions
+  // The parts in id order (LoadScene: the node graph's instances; MakeDefaultScene: one part
+  // "room"). A scene built by hand may leave it empty (SceneEditor then sees one part "scene").
+  std::vector<ScenePart> parts;
+  // Sorted ids of removed parts' vertices: never projected again, never reused. Their
+  // positions stay in `positions` (index == id) with no triangle using them.
+  std::vector<VertexId> retired_ids;
 
   size_t num_vertices() const { return positions.size(); }
   size_t num_triangles() const { return triangles.size() / 3; }
@@ -60,6 +93,8 @@ struct SceneLoadOptions {
 //     equals (exactly, -0 == +0) one seen before gets that earlier id; otherwise the next id.
 // Triangles are the triangulated faces in the same order, re-indexed to ids; degenerate ones
 // (two corners with the same id) are dropped. Point and line primitives give vertices only.
+// Parts: one per (node, mesh) visit of step 1-2, in that order, with the triangles and the new
+// ids of that visit (consecutive) and, as extra_ids, the earlier ids its corners merged into.
 // Errors (one line, naming the file): missing, unreadable or empty file, unsupported format,
 // no vertices, non-finite positions, invalid options.
 Expected<Scene> LoadScene(const std::string& path, const SceneLoadOptions& options = {});

@@ -1,0 +1,25 @@
+// Tracker internals shared by tracker.cc and tracker_recovery.cc.
+#pragma once
+
+#include <cmath>
+
+#include "m2s/common/numeric.h"
+#include "m2s/slam/options.h"
+#include "optimization/problems.h"
+
+namespace m2s::slam::tracker_internal {
+
+// A view with fewer associated points than TrackerOptions::min_inliers is tracked when this
+// fraction of them, and at least kMinPoseInliers, are inliers.
+constexpr double kSparseViewInlierFraction = 0.75;
+constexpr int kMinPoseInliers = 12;
+
+// Pose-only refinement options for the measurement model: Huber at the inlier bound.
+inline PoseOnlyOptions MakePoseOptions(const MeasurementModel& model) {
+  PoseOnlyOptions p;
+  p.pixel_sigma = model.pixel_sigma;
+  p.huber_delta_px = std::sqrt(kChi2TwoDof95) * model.pixel_sigma;
+  return p;
+}
+
+}  // namespace m2s::slam::tracker_internal
