@@ -3,10 +3,13 @@
 #include "m2s/common/evaluation.h"
 
 #include <cmath>
+#include <optional>
 #include <random>
 
 #include <gtest/gtest.h>
 #include <Eigen/SVD>
+
+#include "m2s/common/alignment.h"
 
 namespace m2s {
 namespace {
@@ -227,15 +230,75 @@ TEST(Evaluation, RpeOnAKnownScaleDrift) {
 }
 
 TEST(Evaluation, AlignmentFailuresAreReported) {
-  const Trajectory line = FromPositions({{0, 0, 0}, {1, 0, 0}, {2, 0, 0}});
-  const Expected<TrajectoryEvaluation> r = EvaluateTrajectory(line, line);
+  const Trajectory two = FromPositions({{0, 0, 0}, {1, 0, 0}});
+  Expected<TrajectoryEvaluation> r = EvaluateTrajectory(two, two);
   ASSERT_FALSE(r.ok());
   EXPECT_NE(r.error().find("sim3 alignment failed"), std::string::npos) << r.error();
+  const Trajectory one_place = FromPositions({{1, 2, 3}, {1, 2, 3}, {1, 2, 3}, {1, 2, 3}});
+  EXPECT_FALSE(EvaluateTrajectory(one_place, one_place).ok());
+  // A straight reference with an estimate collapsed to one place has no scale.
+  const Trajectory line = FromPositions({{0, 0, 0}, {1, 0, 0}, {2, 0, 0}, {3, 0, 0}});
+  EXPECT_FALSE(EvaluateTrajectory(line, one_place).ok());
   EvaluationOptions bad;
   bad.association.max_dt = -1.0;
   EXPECT_FALSE(EvaluateTrajectory(line, line, bad).ok());
   EXPECT_TRUE(ParseAlignment("se3").ok());
   EXPECT_FALSE(ParseAlignment("affine").ok());
+}
+
+// A straight walk: 60 poses along x that look around (yaw and pitch change), and an estimate in
+// a known similar frame. Positions fix everything but the rotation about the line; the
+// orientations fix that, so a map 3 m beside the line is judged right.
+TEST(Evaluation, StraightWalkTakesTheRotationAboutItsLineFromTheOrientations) {
+  std::vector<TimedPose> poses;
+  for (int i = 0; i < 60; ++i) {
+    const Eigen::Quaterniond q(Eigen::AngleAxisd(0.02 * i, Eigen::Vector3d::UnitZ()) *
+                               Eigen::AngleAxisd(0.3 - 0.01 * i, Eigen::Vector3d::UnitY()));
+    poses.push_back({i / 30.0, Pose3(q, Eigen::Vector3d(0.01 * i - 1.5, 1.5, 1.6))});
+  }
+  const Trajectory ref = *Trajectory::FromPoses(poses);
+  const Sim3 ref_from_est(
+      4.2, Eigen::Quaterniond(Eigen::AngleAxisd(2.0, Eigen::Vector3d(0.3, -1, 0.5).normalized())),
+      Eigen::Vector3d(-0.7, 2.0, 0.4));
+  const Sim3 est_from_ref = ref_from_est.Inverse();
+  // Exact, and with 10 um of lateral noise (in the reference's units) on the estimate.
+  std::mt19937 rng(5);
+  std::normal_distribution<double> noise(0.0, 1e-5);
+  std::vector<TimedPose> noisy;
+  for (const TimedPose& p : ref) {
+    const Pose3 shifted(
+        p.world_from_camera.rotation(),
+        p.world_from_camera.translation() + Eigen::Vector3d(0.0, noise(rng), noise(rng)));
+    noisy.push_back({p.timestamp, est_from_ref.TransformPose(shifted)});
+  }
+  const Trajectory exact_est = Transformed(ref, est_from_ref);
+  const Trajectory noisy_est = *Trajectory::FromPoses(noisy);
+
+  std::vector<Eigen::Vector3f> truth;
+  for (int i = 0; i < 20; ++i) truth.emplace_back(0.1f * i - 1.0f, 4.5f, 1.6f + 0.05f * i);
+  std::vector<MapPoint> map;
+  for (VertexId id = 0; id < truth.size(); ++id) {
+    map.push_back({id, est_from_ref * truth[id].cast<double>()});
+  }
+  for (const Trajectory* est : {&exact_est, &noisy_est}) {
+    const Expected<TrajectoryEvaluation> r = EvaluateTrajectory(ref, *est);
+    ASSERT_TRUE(r.ok()) << r.error();
+    EXPECT_NEAR(r->scale, 4.2, 1e-3);
+    EXPECT_LT(r->reference_from_estimate.rotation().angularDistance(ref_from_est.rotation()), 1e-3);
+    EXPECT_LT(r->ate.rmse, 2e-5);
+    const Expected<ErrorStats> map_error = EvaluateMap(map, truth, r->reference_from_estimate);
+    ASSERT_TRUE(map_error.ok()) << map_error.error();
+    EXPECT_LT(map_error->max, 5e-3);
+  }
+  // Positions alone (Umeyama) follow the noise about the line: the same map is off by metres.
+  std::vector<Eigen::Vector3d> ref_xyz, est_xyz;
+  for (size_t i = 0; i < ref.size(); ++i) {
+    ref_xyz.push_back(ref[i].world_from_camera.translation());
+    est_xyz.push_back(noisy_est[i].world_from_camera.translation());
+  }
+  const std::optional<Sim3> by_positions = AlignPoints(est_xyz, ref_xyz, true);
+  ASSERT_TRUE(by_positions.has_value());
+  EXPECT_GT(EvaluateMap(map, truth, *by_positions)->median, 0.1);
 }
 
 TEST(Evaluation, MapErrorAfterAKnownSimilarity) {

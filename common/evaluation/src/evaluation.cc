@@ -3,6 +3,10 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+#include <optional>
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
 
 #include "m2s/common/alignment.h"
 
@@ -71,15 +75,97 @@ std::vector<double> Stamps(const Trajectory& trajectory, double offset) {
   return stamps;
 }
 
-// The alignment of matched positions (identity for kNone).
-Expected<Sim3> AlignMatched(const std::vector<Eigen::Vector3d>& reference,
-                            const std::vector<Eigen::Vector3d>& estimate, Alignment kind) {
+// Matched poses in the order of the matches.
+struct MatchedPoses {
+  std::vector<Eigen::Vector3d> reference, estimate;         // positions
+  std::vector<Eigen::Quaterniond> reference_q, estimate_q;  // orientations
+
+  void Add(const Pose3& ref, const Pose3& est) {
+    reference.push_back(ref.translation());
+    estimate.push_back(est.translation());
+    reference_q.push_back(ref.rotation());
+    estimate_q.push_back(est.rotation());
+  }
+};
+
+// Positions that keep within 1e-3 of their length of one line (a straight walk, or the first
+// seconds of one) fix everything but the rotation about that line; Umeyama's answer for it
+// follows the estimate's noise, and a map judged with it is wrong by metres.
+constexpr double kStraightRatio = 1e-3;
+
+// The principal direction of the centred points and the ratio of their second principal extent
+// to their first (0 when all points coincide).
+std::pair<Eigen::Vector3d, double> PrincipalLine(const std::vector<Eigen::Vector3d>& points) {
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const Eigen::Vector3d& p : points) mean += p;
+  mean /= static_cast<double>(points.size());
+  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+  for (const Eigen::Vector3d& p : points) scatter.noalias() += (p - mean) * (p - mean).transpose();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(scatter);  // ascending
+  const Eigen::Vector3d lambda = eigen.eigenvalues().cwiseMax(0.0);
+  const double ratio = lambda(2) > 0.0 ? std::sqrt(lambda(1) / lambda(2)) : 0.0;
+  return {eigen.eigenvectors().col(2), ratio};
+}
+
+// The alignment of a straight reference: the estimate's line onto the reference's (Umeyama's
+// rotation and scale when it has one, else the principal directions), then the rotation about
+// the reference's line that best fits the matched orientations in the chordal sense,
+// argmax_phi sum_i trace(Rot(a, phi) N_i) with N_i = R0 R_est_i R_ref_i^T, which is
+// phi = atan2(B, A) for A = tr N - a^T N a and B = a . (N12 - N21, N20 - N02, N01 - N10).
+std::optional<Sim3> AlignStraight(const MatchedPoses& m, const std::optional<Sim3>& umeyama,
+                                  bool with_scale) {
+  const Eigen::Vector3d axis = PrincipalLine(m.reference).first;
+  Eigen::Vector3d mean_ref = Eigen::Vector3d::Zero(), mean_est = Eigen::Vector3d::Zero();
+  for (size_t i = 0; i < m.reference.size(); ++i) {
+    mean_ref += m.reference[i];
+    mean_est += m.estimate[i];
+  }
+  mean_ref /= static_cast<double>(m.reference.size());
+  mean_est /= static_cast<double>(m.estimate.size());
+  Eigen::Matrix3d r0;
+  double scale = 1.0;
+  if (umeyama) {
+    r0 = umeyama->rotation().toRotationMatrix();
+    scale = umeyama->scale();
+  } else {
+    Eigen::Vector3d est_axis = PrincipalLine(m.estimate).first;
+    double along = 0.0, est_spread = 0.0;
+    for (size_t i = 0; i < m.reference.size(); ++i) {
+      along += (m.reference[i] - mean_ref).dot(axis) * (m.estimate[i] - mean_est).dot(est_axis);
+      est_spread += (m.estimate[i] - mean_est).squaredNorm();
+    }
+    if (along < 0.0) est_axis = -est_axis;
+    r0 = Eigen::Quaterniond::FromTwoVectors(est_axis, axis).toRotationMatrix();
+    if (with_scale) scale = std::abs(along) / est_spread;
+  }
+  Eigen::Matrix3d n = Eigen::Matrix3d::Zero();
+  for (size_t i = 0; i < m.reference_q.size(); ++i) {
+    n.noalias() +=
+        r0 * m.estimate_q[i].toRotationMatrix() * m.reference_q[i].toRotationMatrix().transpose();
+  }
+  const double a = n.trace() - axis.dot(n * axis);
+  const double b =
+      axis.dot(Eigen::Vector3d(n(1, 2) - n(2, 1), n(2, 0) - n(0, 2), n(0, 1) - n(1, 0)));
+  const Eigen::Matrix3d r = Eigen::AngleAxisd(std::atan2(b, a), axis).toRotationMatrix() * r0;
+  if (!(scale > 0.0) || !std::isfinite(scale) || !r.allFinite()) return std::nullopt;
+  return Sim3(scale, Eigen::Quaterniond(r), mean_ref - scale * r * mean_est);
+}
+
+// The alignment of matched poses (identity for kNone): Umeyama on the positions (evo's), with
+// the rotation about the line taken from the orientations when the reference is straight.
+Expected<Sim3> AlignMatched(const MatchedPoses& matched, Alignment kind) {
   if (kind == Alignment::kNone) return Sim3::Identity();
-  const std::optional<Sim3> alignment = AlignPoints(estimate, reference, kind == Alignment::kSim3);
+  const bool with_scale = kind == Alignment::kSim3;
+  std::optional<Sim3> alignment = AlignPoints(matched.estimate, matched.reference, with_scale);
+  if (matched.reference.size() >= 3 && PrincipalLine(matched.reference).second < kStraightRatio &&
+      (alignment || PrincipalLine(matched.estimate).second < kStraightRatio)) {
+    alignment = AlignStraight(matched, alignment, with_scale);
+  }
   if (!alignment) {
     return Expected<Sim3>::Error(std::string(AlignmentName(kind)) +
-                                 " alignment failed: " + std::to_string(reference.size()) +
-                                 " matched poses (need at least 3, not all on one line)");
+                                 " alignment failed: " + std::to_string(matched.reference.size()) +
+                                 " matched poses (need at least 3, not all at one place, and an "
+                                 "estimate on one line only where the reference is)");
   }
   return *alignment;
 }
@@ -174,12 +260,11 @@ Expected<TrajectoryEvaluation> EvaluateTrajectory(const Trajectory& reference,
         " poses) and the estimate (" + std::to_string(estimate.size()) + " poses) within max_dt " +
         std::to_string(options.association.max_dt) + " s");
   }
-  std::vector<Eigen::Vector3d> ref_positions, est_positions;
+  MatchedPoses matched;
   for (const MatchedPair& m : result.matches) {
-    ref_positions.push_back(reference[m.reference].world_from_camera.translation());
-    est_positions.push_back(estimate[m.estimate].world_from_camera.translation());
+    matched.Add(reference[m.reference].world_from_camera, estimate[m.estimate].world_from_camera);
   }
-  auto alignment = AlignMatched(ref_positions, est_positions, options.alignment);
+  auto alignment = AlignMatched(matched, options.alignment);
   if (!alignment) return alignment.status();
   result.reference_from_estimate = *alignment;
   result.scale = result.reference_from_estimate.scale();
@@ -207,22 +292,22 @@ Expected<GroupEvaluation> EvaluateGroup(const std::vector<AgentTrajectories>& ag
                                         const EvaluationOptions& options) {
   if (agents.empty()) return Expected<GroupEvaluation>::Error("no agent trajectories");
   GroupEvaluation result;
-  std::vector<Eigen::Vector3d> ref_positions, est_positions;
+  MatchedPoses matched;
   for (size_t a = 0; a < agents.size(); ++a) {
     auto own = EvaluateTrajectory(agents[a].reference, agents[a].estimate, options);
     if (!own) return own.status().Prefixed("agent " + std::to_string(a + 1) + ": ");
     for (const MatchedPair& m : own->matches) {
-      ref_positions.push_back(agents[a].reference[m.reference].world_from_camera.translation());
-      est_positions.push_back(agents[a].estimate[m.estimate].world_from_camera.translation());
+      matched.Add(agents[a].reference[m.reference].world_from_camera,
+                  agents[a].estimate[m.estimate].world_from_camera);
     }
     result.agents.push_back(std::move(*own));
   }
-  auto alignment = AlignMatched(ref_positions, est_positions, options.alignment);
+  auto alignment = AlignMatched(matched, options.alignment);
   if (!alignment) return alignment.status().Prefixed("joint: ");
   result.reference_from_estimate = *alignment;
   result.scale = alignment->scale();
-  for (size_t i = 0; i < ref_positions.size(); ++i) {
-    result.ate_errors.push_back((*alignment * est_positions[i] - ref_positions[i]).norm());
+  for (size_t i = 0; i < matched.reference.size(); ++i) {
+    result.ate_errors.push_back((*alignment * matched.estimate[i] - matched.reference[i]).norm());
   }
   result.ate = ComputeStats(result.ate_errors);
   return result;

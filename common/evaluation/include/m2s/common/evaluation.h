@@ -12,7 +12,12 @@
 //    candidate pairs with |dt| < max_dt, taken greedily by smallest |dt|, each pose used once.
 //  * Alignment (evo Trajectory.align, Umeyama 1991 via AlignPoints): the estimated positions of
 //    all matched pairs are aligned onto the reference positions with a similarity (kSim3, evo
-//    -as), a rigid transform (kSe3, evo -a), or not at all (kNone).
+//    -as), a rigid transform (kSe3, evo -a), or not at all (kNone). One departure: when the
+//    reference positions keep within 1e-3 of their length of one line (a straight walk, or its
+//    first seconds), positions fix everything but the rotation about that line, and Umeyama's
+//    choice of it follows the estimate's noise; that rotation is then taken from the matched
+//    orientations (chordal fit), so a map judged with the alignment is not wrong by metres. The
+//    ATE is unchanged by it (a rotation about the line moves no point on the line).
 //  * ATE (evo APE, translation part): e_i = |t_ref_i - t_aligned_est_i| in metres.
 //  * RPE (evo RPE defaults: delta 1 frame, translation part, consecutive pairs of the matched
 //    sequence): e_i = |translation((ref_i^-1 ref_i+1)^-1 (est_i^-1 est_i+1))|, computed on the
@@ -92,7 +97,8 @@ struct TrajectoryEvaluation {
 };
 
 // Fails when the options are invalid, no timestamps match, or the alignment is impossible
-// (fewer than 3 matches or collinear positions for kSe3 / kSim3).
+// (for kSe3 / kSim3: fewer than 3 matches, all reference positions at one place, or estimated
+// positions on one line where the reference's are not).
 Expected<TrajectoryEvaluation> EvaluateTrajectory(const Trajectory& reference,
                                                   const Trajectory& estimate,
                                                   const EvaluationOptions& options = {});
