@@ -26,15 +26,27 @@ Expected<wire::FeatureFrame> FrameSource::Make(const Pose3& world_from_camera,
   frame.capture_time_us = capture_time_us;
   frame.camera = camera_;
   frame.ground_truth_world_from_camera = world_from_camera;
-  frame.features.reserve(scratch_.size());
-  for (const ProjectedVertex& p : scratch_) {
+  // The in-image vertices, then the balanced selection of them (KeepBalanced's, without a
+  // frame-sized copy: a view of a large scene holds millions of vertices).
+  in_image_.clear();
+  ids_.clear();
+  cells_.clear();
+  for (uint32_t k = 0; k < scratch_.size(); ++k) {
+    const ProjectedVertex& p = scratch_[k];
     if (!camera_.InImage(p.u, p.v)) continue;
+    in_image_.push_back(k);
+    ids_.push_back(p.id);
+    cells_.push_back(send_grid_.CellOf(p.u, p.v));
+  }
+  const std::vector<uint32_t> kept = SelectBalanced(ids_, cells_, send_budget_);
+  frame.features.reserve(kept.size());
+  for (const uint32_t j : kept) {
+    const ProjectedVertex& p = scratch_[in_image_[j]];
     VertexFeature f;
     f.id = p.id;
     f.uv = {p.u, p.v};
     frame.features.push_back(f);
   }
-  KeepBalanced(send_budget_, send_grid_, &frame.features);
   last_projection_ms_ =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return frame;

@@ -47,42 +47,23 @@ FeatureGrid FeatureGrid::ForImage(int width, int height) {
   return grid;
 }
 
-int FeatureGrid::CellOf(double u, double v) const {
-  auto index = [](double x, double step, int count) {
-    const double i = std::floor(x / step);
-    if (!(i >= 0.0)) return 0;  // negative or NaN
-    return i >= count - 1 ? count - 1 : static_cast<int>(i);
-  };
-  return index(v, cell_height, rows) * cols + index(u, cell_width, cols);
-}
-
 std::vector<uint32_t> SelectBalanced(std::span<const VertexId> ids, std::span<const int> cells,
                                      int budget) {
   const size_t n = ids.size();
-  std::vector<uint32_t> kept(n);
-  std::iota(kept.begin(), kept.end(), 0u);
-  if (budget <= 0 || n <= static_cast<size_t>(budget)) return kept;
-  // Features bucketed by cell (counting sort), each with its rank.
+  std::vector<uint32_t> kept;
+  if (budget <= 0 || n <= static_cast<size_t>(budget)) {
+    kept.resize(n);
+    std::iota(kept.begin(), kept.end(), 0u);
+    return kept;
+  }
   int num_cells = 0;
   for (const int c : cells) num_cells = std::max(num_cells, c + 1);
-  std::vector<uint32_t> begin(static_cast<size_t>(num_cells) + 1, 0);
-  for (const int c : cells) ++begin[static_cast<size_t>(c) + 1];
-  std::partial_sum(begin.begin(), begin.end(), begin.begin());
-  struct Ranked {
-    uint64_t rank;
-    uint32_t index;
-    bool operator<(const Ranked& o) const { return rank < o.rank; }
-  };
-  std::vector<Ranked> bucketed(n);
-  std::vector<uint32_t> fill(begin.begin(), begin.end() - 1);
-  for (size_t i = 0; i < n; ++i) {
-    bucketed[fill[static_cast<size_t>(cells[i])]++] = {FeatureRank(ids[i]),
-                                                       static_cast<uint32_t>(i)};
-  }
+  std::vector<uint32_t> count(static_cast<size_t>(num_cells), 0);
+  for (const int c : cells) ++count[static_cast<size_t>(c)];
   // Whole levels: the largest L with sum over cells of min(count, L) <= budget.
   auto whole_levels_size = [&](uint32_t level) {
     size_t total = 0;
-    for (int c = 0; c < num_cells; ++c) total += std::min(begin[c + 1] - begin[c], level);
+    for (const uint32_t k : count) total += std::min(k, level);
     return total;
   };
   uint32_t lo = 0, hi = static_cast<uint32_t>(n);
@@ -95,17 +76,42 @@ std::vector<uint32_t> SelectBalanced(std::span<const VertexId> ids, std::span<co
     }
   }
   const uint32_t levels = lo;
+  // One pass keeps the levels + 1 lowest-ranked features of every cell in a max-heap of that
+  // size (a view of millions of features needs no per-feature storage); ranks are distinct,
+  // so the result does not depend on the features' order.
+  struct Ranked {
+    uint64_t rank;
+    uint32_t index;
+    bool operator<(const Ranked& o) const { return rank < o.rank; }
+  };
+  std::vector<uint32_t> begin(count.size() + 1, 0);
+  for (size_t c = 0; c < count.size(); ++c)
+    begin[c + 1] = begin[c] + std::min(count[c], levels + 1);
+  std::vector<Ranked> lowest(begin.back());
+  std::vector<uint32_t> filled(count.size(), 0);
+  for (size_t i = 0; i < n; ++i) {
+    const auto c = static_cast<size_t>(cells[i]);
+    const uint64_t rank = FeatureRank(ids[i]);
+    Ranked* heap = lowest.data() + begin[c];
+    const uint32_t size = begin[c + 1] - begin[c];
+    if (filled[c] < size) {
+      heap[filled[c]++] = {rank, static_cast<uint32_t>(i)};
+      if (filled[c] == size) std::make_heap(heap, heap + size);
+    } else if (rank < heap[0].rank) {
+      std::pop_heap(heap, heap + size);
+      heap[size - 1] = {rank, static_cast<uint32_t>(i)};
+      std::push_heap(heap, heap + size);
+    }
+  }
   // Every cell keeps its `levels` lowest-ranked features; the next one of each fuller cell is
   // a candidate for the rest of the budget, lowest rank first.
-  kept.clear();
   std::vector<Ranked> candidates;
-  for (int c = 0; c < num_cells; ++c) {
-    const auto first = bucketed.begin() + begin[c], last = bucketed.begin() + begin[c + 1];
-    if (static_cast<uint32_t>(last - first) > levels) {
-      std::nth_element(first, first + levels, last);
-      candidates.push_back(first[levels]);
-    }
-    for (auto it = first; it != last && it - first < levels; ++it) kept.push_back(it->index);
+  for (size_t c = 0; c < count.size(); ++c) {
+    Ranked* first = lowest.data() + begin[c];
+    Ranked* last = lowest.data() + begin[c + 1];
+    std::sort(first, last);
+    if (count[c] > levels) candidates.push_back(first[levels]);
+    for (Ranked* it = first; it != last && it - first < levels; ++it) kept.push_back(it->index);
   }
   const size_t rest = static_cast<size_t>(budget) - kept.size();
   std::nth_element(candidates.begin(), candidates.begin() + rest, candidates.end());

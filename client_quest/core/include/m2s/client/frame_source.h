@@ -43,7 +43,11 @@ class FrameSource {
   const uint32_t num_scene_vertices_;
   const int send_budget_;
   const FeatureGrid send_grid_;
+  // Per-frame buffers kept between frames (no page faults on millions of features).
   std::vector<ProjectedVertex> scratch_;
+  std::vector<uint32_t> in_image_;  // indices into scratch_
+  std::vector<VertexId> ids_;
+  std::vector<int> cells_;
   double last_projection_ms_ = 0.0;
 };
 

@@ -28,6 +28,7 @@
 //   KeepBalanced(2000, grid, &features);   // at most 2000, spread over the grid
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -60,8 +61,17 @@ struct FeatureGrid {
   static FeatureGrid ForImage(int width, int height);
   int num_cells() const { return cols * rows; }
   // The cell of (u, v); points outside the image (within a validation margin) go to the
-  // nearest cell; NaN goes to cell 0.
-  int CellOf(double u, double v) const;
+  // nearest cell; NaN goes to cell 0. Inline: a large view asks it for millions of features.
+  int CellOf(double u, double v) const {
+    return Index(v, cell_height, rows) * cols + Index(u, cell_width, cols);
+  }
+
+ private:
+  static int Index(double x, double step, int count) {
+    const double i = std::floor(x / step);
+    if (!(i >= 0.0)) return 0;  // negative or NaN
+    return i >= count - 1 ? count - 1 : static_cast<int>(i);
+  }
 };
 
 // Balanced selection (see the top of this file): the indices of the kept features, ascending.
