@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <string>
 #include <thread>
@@ -214,15 +215,26 @@ size_t CpuProjector::Impl::TestGroup(size_t begin, size_t end, ProjectedVertex* 
   const float relative = 1.f + static_cast<float>(options.occlusion_depth_bias_relative);
   const float absolute = static_cast<float>(options.occlusion_depth_bias_m);
   const int max_x = depth_buffer.width() - 1, max_y = depth_buffer.height() - 1;
-  for (size_t i = begin; i < end; ++i) {
-    if (!all_visible[i]) continue;
-    const int bx = std::clamp(static_cast<int>(std::floor(all_u[i] * scale_x)), 0, max_x);
-    const int by = std::clamp(static_cast<int>(std::floor(all_v[i] * scale_y)), 0, max_y);
-    const float nearest = dilated.row(by)[bx];
-    if (all_depth[i] <= nearest * relative + absolute) {
-      out[count++] = ProjectedVertex{static_cast<VertexId>(i), all_u[i], all_v[i], all_depth[i]};
-    }
+  // Branch-free inside (along the ids of a dense scan the test passes and fails at random):
+  // each vertex is written at out[count] and counted only when in view and in front; `out`
+  // has room for every vertex of the group. Eight vertices out of view are skipped at a time.
+  auto test = [&](size_t i) {
+    const bool in_view = all_visible[i] != 0;
+    const float u = in_view ? all_u[i] : 0.f, v = in_view ? all_v[i] : 0.f;
+    const int bx = std::clamp(static_cast<int>(std::floor(u * scale_x)), 0, max_x);
+    const int by = std::clamp(static_cast<int>(std::floor(v * scale_y)), 0, max_y);
+    const bool in_front = all_depth[i] <= dilated.row(by)[bx] * relative + absolute;
+    out[count] = ProjectedVertex{static_cast<VertexId>(i), all_u[i], all_v[i], all_depth[i]};
+    count += static_cast<size_t>(in_view & in_front);
+  };
+  size_t i = begin;
+  for (; i + 8 <= end; i += 8) {
+    uint64_t word;
+    std::memcpy(&word, all_visible.data() + i, sizeof(word));
+    if (word == 0) continue;
+    for (size_t j = i; j < i + 8; ++j) test(j);
   }
+  for (; i < end; ++i) test(i);
   return count;
 }
 
