@@ -146,6 +146,7 @@ void Tracker::Associate(const SortedFeatures& features, Association* a) const {
       a->dormant.push_back(dormant);
       a->num_dormant += dormant ? 1 : 0;
       a->constrained.push_back(p->constrained);
+      a->uncertainty.push_back(p->uncertainty);
     }
     if (reference_kf_) {
       if (const Keyframe* kf = m.keyframe(*reference_kf_)) {
@@ -342,12 +343,17 @@ TrackerOutput Tracker::Track(int64_t seq, double timestamp, const SortedFeatures
   for (size_t i = 0; i < a.ids.size(); ++i) dormant_inliers += a.dormant[i] ? 1 : 0;
   out.num_inliers = num_inliers;
   // A point far off in consecutive frames whose poses the rest supports has moved (a wrong id
-  // or a noisy feature is one frame's).
-  const double moved_err_sq = kMovedPointFactor * kMovedPointFactor * kChi2TwoDof95 *
-                              model_.pixel_sigma * model_.pixel_sigma;
+  // or a noisy feature is one frame's). "Far" counts the point's own uncertainty as pixel
+  // noise (its relative spread times the focal length bounds how far a point that is only
+  // poorly triangulated can reproject): a short-baseline point in a sparse, noisy view is not
+  // a moved vertex, and forgetting it would take the view's support away.
+  const double sigma_sq = model_.pixel_sigma * model_.pixel_sigma;
   std::unordered_map<VertexId, int> streak;
   for (size_t i = 0; i < a.ids.size(); ++i) {
     if (a.dormant[i] || inlier[i]) continue;
+    const double spread_px = std::max(0.0, a.uncertainty[i]) * model_.camera.fx;
+    const double moved_err_sq =
+        kMovedPointFactor * kMovedPointFactor * kChi2TwoDof95 * (sigma_sq + spread_px * spread_px);
     const Eigen::Vector3d pc = camera_from_world * a.points[i];
     if (pc.z() > 0.0 && (model_.camera.Project(pc) - a.uvs[i]).squaredNorm() <= moved_err_sq)
       continue;

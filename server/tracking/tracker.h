@@ -102,8 +102,9 @@ class Tracker {
     std::vector<Eigen::Vector2d> uvs;
     std::vector<bool> dormant;
     int num_dormant = 0;
-    std::vector<bool> constrained;  // MapPoint::constrained
-    int num_new_triangulable = 0;   // unmapped features already seen by a keyframe
+    std::vector<bool> constrained;    // MapPoint::constrained
+    std::vector<double> uncertainty;  // MapPoint::uncertainty (negative: not known)
+    int num_new_triangulable = 0;     // unmapped features already seen by a keyframe
     std::optional<Pose3> reference_pose;
     int reference_points = -1;
   };

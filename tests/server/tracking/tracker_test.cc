@@ -5,6 +5,7 @@
 #include "tracking/tracker.h"
 
 #include <fstream>
+#include <optional>
 #include <random>
 #include <string>
 #include <vector>
@@ -379,6 +380,58 @@ TEST(Tracker, PosesAreSolvedOnWellConstrainedPointsWhenThereAreEnough) {
     EXPECT_LT(PositionError(out.world_from_camera, expected), 1e-9)
         << "min_constrained_points " << min_constrained;
   }
+}
+
+TEST(Tracker, OnlyPointsOffBeyondTheirOwnUncertaintyAreMovedVertices) {
+  // 200 well-placed points, 12 whose vertex moved 0.2 m after mapping (well constrained), and
+  // 12 poorly triangulated ones mapped 6 cm off (relative uncertainty 0.05: up to ~16 px at
+  // this focal length). Both kinds are pose outliers in every frame; after three frames the
+  // keyframe names the moved vertices and none of the poorly triangulated points.
+  const Options options = TestOptions();
+  constexpr VertexId kFirstMovedId = 1000, kFirstPoorId = 2000;
+  std::mt19937 rng(11);
+  Scene scene;
+  AddPoints(options.camera, 200, 0, false, 10, 630, 10, 470, &rng, &scene);
+  AddPoints(options.camera, 12, kFirstMovedId, false, 10, 630, 10, 470, &rng, &scene);
+  AddPoints(options.camera, 12, kFirstPoorId, false, 10, 630, 10, 470, &rng, &scene);
+  std::vector<Eigen::Vector3d> mapped = scene.true_points;
+  for (size_t i = 0; i < scene.ids.size(); ++i) {
+    if (scene.ids[i] >= kFirstPoorId) {
+      mapped[i] += Eigen::Vector3d(0.06, 0.0, 0.0);
+    } else if (scene.ids[i] >= kFirstMovedId) {
+      scene.true_points[i] += Eigen::Vector3d(0.0, 0.2, 0.0);  // moved after mapping
+    }
+  }
+  Map map;
+  InsertScene(
+      scene, options.camera, [&](size_t i) { return mapped[i]; }, &map);
+  map.Write([&](MapData& m) {
+    for (const VertexId id : scene.ids) {
+      if (id >= kFirstPoorId) {
+        m.SetPointUncertainty(id, 0.05, false);
+      } else {
+        m.SetPointUncertainty(id, 0.001, true);
+      }
+    }
+  });
+  Tracker tracker(options.measurement(), options.tracker, options.drift, &map);
+  tracker.Start(kReferenceKeyframe, Pose3::Identity(), 0, 0.0, 2.0);
+  std::optional<KeyframeCandidate> keyframe;
+  for (int k = 1; k <= 3; ++k) {
+    const Pose3 truth(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.002 * k, 0.0, 0.001 * k));
+    const SortedFeatures frame = Observe(scene, options.camera, truth, 0.5, &rng);
+    // The last frame comes after the keyframe interval, so it makes a keyframe.
+    const double t = k < 3 ? 0.02 * k : 1.0 + options.tracker.keyframe_max_interval_s;
+    const TrackerOutput out = tracker.Track(k, t, frame, /*mapping_busy=*/k < 3);
+    ASSERT_EQ(out.state, TrackingState::kOk) << "frame " << k;
+    // The poorly triangulated points may pull the pose by a few mm; the moved ones do not.
+    EXPECT_LT(PositionError(out.world_from_camera, truth), 5e-3) << "frame " << k;
+    keyframe = out.keyframe;
+  }
+  ASSERT_TRUE(keyframe.has_value());
+  std::vector<VertexId> expected;
+  for (VertexId id = kFirstMovedId; id < kFirstMovedId + 12; ++id) expected.push_back(id);
+  EXPECT_EQ(keyframe->moved_points, expected);
 }
 
 // OpenCV's PnP asserts on fewer than four points. Only options Check() refuses (min_inliers
