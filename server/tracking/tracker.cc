@@ -10,6 +10,7 @@
 namespace m2s::slam {
 
 using tracker_internal::kMinPoseInliers;
+using tracker_internal::kMinTrackedInliers;
 using tracker_internal::kSparseViewInlierFraction;
 using tracker_internal::MakePoseOptions;
 
@@ -182,9 +183,9 @@ bool Tracker::TrackWithModel(const Association& a, Pose3* camera_from_world,
                              std::vector<bool>* inlier) {
   const Pose3 prior = velocity_ * last_camera_from_world_;
   const int num_active = static_cast<int>(a.ids.size()) - a.num_dormant;
-  const int required = RequiredInliers(static_cast<int>(a.ids.size()));
+  const int required = RequiredInliers(static_cast<int>(a.ids.size()), kMinTrackedInliers);
   // Classified on the recent points alone, a pose needs the inliers of a view of those.
-  const int required_active = RequiredInliers(num_active);
+  const int required_active = RequiredInliers(num_active, kMinTrackedInliers);
   // Solves from the motion prior on the associated points (dormant ones too or not),
   // subsampled evenly beyond TrackerOptions::max_points.
   auto solve = [&](bool skip_dormant, Pose3* pose) {

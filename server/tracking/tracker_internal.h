@@ -10,9 +10,12 @@
 namespace m2s::slam::tracker_internal {
 
 // A view with fewer associated points than TrackerOptions::min_inliers is tracked when this
-// fraction of them, and at least kMinPoseInliers, are inliers.
+// fraction of them, and at least kMinPoseInliers, are inliers; from the motion prior (the
+// previous frame was tracked) kMinTrackedInliers suffice, so a view that empties for a moment
+// (a hand-held camera turned to a bare wall) keeps its track instead of starting a new map.
 constexpr double kSparseViewInlierFraction = 0.75;
 constexpr int kMinPoseInliers = 12;
+constexpr int kMinTrackedInliers = 8;
 
 // Pose-only refinement options for the measurement model: Huber at the inlier bound.
 inline PoseOnlyOptions MakePoseOptions(const MeasurementModel& model) {

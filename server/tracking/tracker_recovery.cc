@@ -17,6 +17,7 @@
 namespace m2s::slam {
 
 using tracker_internal::kMinPoseInliers;
+using tracker_internal::kMinTrackedInliers;
 using tracker_internal::kSparseViewInlierFraction;
 using tracker_internal::MakePoseOptions;
 
@@ -61,7 +62,7 @@ std::optional<Pose3> SolvePnpRansac(const Camera& camera, double threshold_px,
 bool Tracker::Relocalise(const Association& a, Pose3* camera_from_world,
                          std::vector<bool>* inlier) {
   const int n = static_cast<int>(a.ids.size());
-  const int required = RequiredInliers(n);
+  const int required = RequiredInliers(n, kMinTrackedInliers);
   if (n < required) return false;
   std::vector<cv::Point3d> object;
   std::vector<cv::Point2d> image;
@@ -125,13 +126,12 @@ bool Tracker::TrackRotationOnly(const SortedFeatures& features, const Associatio
   return true;
 }
 
-int Tracker::RequiredInliers(int num_points) const {
+int Tracker::RequiredInliers(int num_points, int floor) const {
   // Exact association has no ambiguous matches: a sparse view's pose rests on most of the
   // points it sees, not on a fixed count it may never reach.
   const int from_view =
       static_cast<int>(std::ceil(kSparseViewInlierFraction * static_cast<double>(num_points)));
-  return std::clamp(from_view, std::min(kMinPoseInliers, options_.min_inliers),
-                    options_.min_inliers);
+  return std::clamp(from_view, std::min(floor, options_.min_inliers), options_.min_inliers);
 }
 
 }  // namespace m2s::slam

@@ -20,7 +20,7 @@ namespace {
 constexpr double kFps = 30.0;
 constexpr double kCutStart = 4.0;  // features cut in [kCutStart, kCutEnd)
 constexpr double kCutEnd = 6.0;
-constexpr int kCutFeatures = 8;  // what a covered camera still reports: too few to count
+constexpr int kCutFeatures = 5;  // what a covered camera still reports: under the 8 a pose needs
 
 // A 24 m corridor: a textured wall at y = -1.5 and clutter in front of it (depth structure),
 // every vertex its own id. Deterministic.

@@ -54,7 +54,8 @@ struct TrackerOptions {
   // frame's ids; 0: all). Bounded tracking time on dense frames.
   int max_points = 600;
   // A frame with fewer pose inliers than this is lost (and relocalisation needs as many); in
-  // a sparse view with fewer associated points, 75 % of them and at least 12 suffice.
+  // a sparse view with fewer associated points, 75 % of them and at least 8 suffice (at
+  // least 12 for a rotation-only pose).
   int min_inliers = 30;
   // Keyframe when the tracked points fall below this fraction of the reference keyframe's,
   double keyframe_tracked_ratio = 0.9;
