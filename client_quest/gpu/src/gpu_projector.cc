@@ -13,21 +13,30 @@ namespace {
 static_assert(sizeof(ProjectedVertex) == 16, "ProjectedVertex must match the shader's Feature");
 
 constexpr GLuint kLocalSize = 256;
+// Vertices are culled in groups of this many consecutive ids (16 workgroups each).
+constexpr GLuint kCullGroupSize = 4096;
+static_assert(kCullGroupSize % kLocalSize == 0, "a cull group is whole workgroups");
+// FrustumCuller margin: the CPU projector's (its kernel and the shader round alike).
+constexpr double kCullMarginPx = 2.0;
 constexpr GLuint kMaxGroupsX = 65535;  // GLES 3.1 guaranteed minimum
 // Collect() gives up when the GPU has not finished a frame after this long.
 constexpr GLuint64 kFenceTimeoutNs = 60ull * 1000 * 1000 * 1000;
 
-// Binding points: 0 positions, 1 counter, 2 features; texture unit 0 = occlusion depth.
+// Binding points: 0 positions, 1 counter, 2 features, 3 the cull groups in view; texture
+// unit 0 = occlusion depth. Workgroup w projects ids groups[w / 16] * 4096 + (w % 16) * 256 + i.
 constexpr const char* kComputeShader = R"(
 layout(local_size_x = 256) in;
 layout(std430, binding = 0) readonly buffer Positions { float positions[]; };
 layout(std430, binding = 1) buffer Counter { uint count; };
 struct Feature { uint id; float u; float v; float depth; };
 layout(std430, binding = 2) writeonly buffer Features { Feature features[]; };
+layout(std430, binding = 3) readonly buffer Groups { uint groups[]; };
 
 uniform vec4 u_intrinsics;  // fx fy cx cy
 uniform vec4 u_range;       // width height near far
 uniform uint u_num_vertices;
+uniform uint u_num_groups;  // entries of groups[]
+uniform uint u_capacity;    // entries of features[]
 #ifdef M2S_OCCLUSION
 uniform highp sampler2D u_depth;  // window depth, row 0 = image top
 uniform vec2 u_depth_size;        // depth buffer width, height in texels
@@ -35,8 +44,11 @@ uniform vec2 u_bias;              // relative, absolute (metres)
 #endif
 
 void main() {
-  uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
-  uint id = group * 256u + gl_LocalInvocationIndex;
+  uint workgroup = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+  uint slot = workgroup / 16u;
+  uint id = slot < u_num_groups
+                ? groups[slot] * 4096u + (workgroup % 16u) * 256u + gl_LocalInvocationIndex
+                : u_num_vertices;
   bool visible = false;
   float u = 0.0, v = 0.0, z = 0.0;
   if (id < u_num_vertices) {
@@ -71,7 +83,10 @@ void main() {
   }
   // One atomic per visible vertex on a uniform address: GPU compilers aggregate these per
   // subgroup themselves (see gpu_projector.h, "How it runs").
-  if (visible) features[atomicAdd(count, 1u)] = Feature(id, u, v, z);
+  if (visible) {
+    uint slot = atomicAdd(count, 1u);
+    if (slot < u_capacity) features[slot] = Feature(id, u, v, z);
+  }
 }
 )";
 
@@ -116,14 +131,18 @@ Expected<std::unique_ptr<GpuProjector>> GpuProjector::Create(const Scene& scene,
 Status GpuProjector::Init(const Scene& scene, const ProjectorOptions& options) {
   options_ = options;
   num_vertices_ = scene.positions.size();
-  const GLint64 features_bytes = static_cast<GLint64>(num_vertices_) * 16;
+  // Positions must fit one storage block; the output holds every vertex where the device
+  // allows, else as many as one block holds (a frame that sees more fails in Collect()).
   GLint64 max_block = 0;
   glGetInteger64v(GL_MAX_SHADER_STORAGE_BLOCK_SIZE, &max_block);
-  if (features_bytes > max_block || num_vertices_ > std::numeric_limits<uint32_t>::max() / 3) {
+  const GLint64 positions_bytes = static_cast<GLint64>(num_vertices_) * 12;
+  if (positions_bytes > max_block || num_vertices_ > std::numeric_limits<uint32_t>::max() / 3) {
     return Status::Error("scene of " + std::to_string(num_vertices_) +
                          " vertices exceeds GL_MAX_SHADER_STORAGE_BLOCK_SIZE (" +
                          std::to_string(max_block) + " bytes)");
   }
+  capacity_ = std::min<size_t>(num_vertices_, static_cast<size_t>(max_block / 16));
+  const GLint64 features_bytes = static_cast<GLint64>(capacity_) * 16;
   const std::string header = std::string("#version 310 es\nprecision highp float;\n") +
                              (options.occlusion ? "#define M2S_OCCLUSION 1\n" : "") + kCameraGlsl;
   Expected<GlProgram> program = CompileProgram({{GL_COMPUTE_SHADER, header + kComputeShader}});
@@ -134,6 +153,8 @@ Status GpuProjector::Init(const Scene& scene, const ProjectorOptions& options) {
   loc_intrinsics_ = glGetUniformLocation(id, "u_intrinsics");
   loc_range_ = glGetUniformLocation(id, "u_range");
   loc_num_vertices_ = glGetUniformLocation(id, "u_num_vertices");
+  loc_num_groups_ = glGetUniformLocation(id, "u_num_groups");
+  loc_capacity_ = glGetUniformLocation(id, "u_capacity");
   loc_depth_ = glGetUniformLocation(id, "u_depth");
   loc_depth_size_ = glGetUniformLocation(id, "u_depth_size");
   loc_bias_ = glGetUniformLocation(id, "u_bias");
@@ -143,7 +164,14 @@ Status GpuProjector::Init(const Scene& scene, const ProjectorOptions& options) {
   glBindBuffer(GL_SHADER_STORAGE_BUFFER, positions_.id());
   glBufferData(GL_SHADER_STORAGE_BUFFER, static_cast<GLsizeiptr>(num_vertices_ * 3 * sizeof(float)),
                scene.positions.data(), GL_STATIC_DRAW);
+  vertex_groups_ = MakeVertexGroups(scene.positions, kCullGroupSize);
+  visible_groups_.reserve(vertex_groups_.size());
   for (Slot& slot : slots_) {
+    slot.groups = MakeGlBuffer();
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, slot.groups.id());
+    glBufferData(GL_SHADER_STORAGE_BUFFER,
+                 static_cast<GLsizeiptr>(vertex_groups_.size() * sizeof(GLuint)), nullptr,
+                 GL_DYNAMIC_DRAW);
     slot.counter = MakeGlBuffer();
     glBindBuffer(GL_SHADER_STORAGE_BUFFER, slot.counter.id());
     glBufferData(GL_SHADER_STORAGE_BUFFER, sizeof(GLuint), nullptr, GL_DYNAMIC_READ);
@@ -199,6 +227,21 @@ Status GpuProjector::Dispatch(const Pose3& world_from_camera, const Camera& came
   const GLuint zero = 0;
   glBindBuffer(GL_SHADER_STORAGE_BUFFER, slot.counter.id());
   glBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, sizeof(zero), &zero);
+  // The groups whose box may be in view; only their vertices are dispatched.
+  const FrustumCuller culler(world_from_camera, camera, kCullMarginPx);
+  visible_groups_.clear();
+  last_vertices_considered_ = 0;
+  for (size_t g = 0; g < vertex_groups_.size(); ++g) {
+    if (!culler.MayBeVisible(vertex_groups_[g])) continue;
+    visible_groups_.push_back(static_cast<GLuint>(g));
+    last_vertices_considered_ += vertex_groups_[g].end - vertex_groups_[g].begin;
+  }
+  if (!visible_groups_.empty()) {
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, slot.groups.id());
+    glBufferSubData(GL_SHADER_STORAGE_BUFFER, 0,
+                    static_cast<GLsizeiptr>(visible_groups_.size() * sizeof(GLuint)),
+                    visible_groups_.data());
+  }
   glBindBuffer(GL_SHADER_STORAGE_BUFFER, 0);
 
   GLint previous_program = 0;
@@ -208,6 +251,8 @@ Status GpuProjector::Dispatch(const Pose3& world_from_camera, const Camera& came
   glUniform4fv(loc_intrinsics_, 1, uniforms.intrinsics.data());
   glUniform4fv(loc_range_, 1, uniforms.range.data());
   glUniform1ui(loc_num_vertices_, static_cast<GLuint>(num_vertices_));
+  glUniform1ui(loc_num_groups_, static_cast<GLuint>(visible_groups_.size()));
+  glUniform1ui(loc_capacity_, static_cast<GLuint>(capacity_));
   if (depth_pass_) {
     glActiveTexture(GL_TEXTURE0);
     glBindTexture(GL_TEXTURE_2D, depth_pass_->texture());
@@ -220,10 +265,14 @@ Status GpuProjector::Dispatch(const Pose3& world_from_camera, const Camera& came
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, positions_.id());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, slot.counter.id());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, slot.features.id());
-  const GLuint groups = static_cast<GLuint>((num_vertices_ + kLocalSize - 1) / kLocalSize);
-  const GLuint groups_x = std::min(groups, kMaxGroupsX);
-  const GLuint groups_y = (groups + groups_x - 1) / groups_x;
-  glDispatchCompute(groups_x, groups_y, 1);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, slot.groups.id());
+  const GLuint workgroups =
+      static_cast<GLuint>(visible_groups_.size()) * (kCullGroupSize / kLocalSize);
+  if (workgroups > 0) {
+    const GLuint groups_x = std::min(workgroups, kMaxGroupsX);
+    const GLuint groups_y = (workgroups + groups_x - 1) / groups_x;
+    glDispatchCompute(groups_x, groups_y, 1);
+  }
   // Make the shader's buffer writes visible to glMapBufferRange.
   glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
   glUseProgram(static_cast<GLuint>(previous_program));
@@ -266,7 +315,14 @@ Status GpuProjector::Collect(std::vector<ProjectedVertex>* out, int64_t* tag) {
   GLuint count = 0;
   std::memcpy(&count, counter, sizeof(count));
   glUnmapBuffer(GL_SHADER_STORAGE_BUFFER);
-  count = static_cast<GLuint>(std::min<size_t>(count, num_vertices_));
+  if (count > capacity_) {
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, 0);
+    out->clear();
+    return Status::Error("GpuProjector::Collect: " + std::to_string(count) +
+                         " vertices in view exceed the output buffer (" +
+                         std::to_string(capacity_) +
+                         " features: GL_MAX_SHADER_STORAGE_BLOCK_SIZE / 16 bytes)");
+  }
   out->resize(count);  // capacity reused from frame to frame
   if (count > 0) {
     glBindBuffer(GL_SHADER_STORAGE_BUFFER, slot.features.id());

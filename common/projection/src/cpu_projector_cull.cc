@@ -5,7 +5,7 @@
 
 #include "cpu_projector_internal.h"
 
-namespace m2s::internal {
+namespace m2s {
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
@@ -55,6 +55,20 @@ std::vector<CullGroup> MakeVertexGroups(const float* x, const float* y, const fl
     const size_t end = std::min(n, begin + group_size);
     groups.push_back(
         BoxVertices(x, y, z, static_cast<uint32_t>(begin), static_cast<uint32_t>(end)));
+  }
+  return groups;
+}
+
+std::vector<CullGroup> MakeVertexGroups(std::span<const Eigen::Vector3f> positions,
+                                        size_t group_size) {
+  std::vector<CullGroup> groups;
+  for (size_t begin = 0; begin < positions.size(); begin += group_size) {
+    const size_t end = std::min(positions.size(), begin + group_size);
+    CullGroup group = BoxOf(static_cast<uint32_t>(begin), static_cast<uint32_t>(end));
+    for (size_t i = begin; i < end; ++i) {
+      Extend(&group, positions[i].x(), positions[i].y(), positions[i].z());
+    }
+    groups.push_back(group);
   }
   return groups;
 }
@@ -149,6 +163,8 @@ bool FrustumCuller::MayBeVisible(const CullGroup& group) const {
   return true;
 }
 
+namespace internal {
+
 void SplitByCount(const std::vector<CullGroup>& groups, const std::vector<uint32_t>& list,
                   int parts, std::vector<size_t>* split) {
   split->assign(static_cast<size_t>(parts) + 1, list.size());
@@ -164,4 +180,5 @@ void SplitByCount(const std::vector<CullGroup>& groups, const std::vector<uint32
   }
 }
 
-}  // namespace m2s::internal
+}  // namespace internal
+}  // namespace m2s

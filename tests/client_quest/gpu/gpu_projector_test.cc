@@ -139,6 +139,43 @@ TEST_F(GpuProjectorTest, RealMeshMatchesCpuAndReference) {
   CompareAll(*scene, poses, camera);
 }
 
+// A 6 x 6 district of patches 4 m apart, each a 64 x 64 vertex grid of 1 m (4096 vertices: one
+// cull group). Views along a row see a few patches: only their groups are dispatched, and the
+// features are the reference's; a view of the sky dispatches nothing and finds nothing.
+TEST_F(GpuProjectorTest, CulledGroupsChangeNothing) {
+  Scene scene;
+  for (int px = 0; px < 6; ++px) {
+    for (int py = 0; py < 6; ++py) {
+      for (int i = 0; i < 64; ++i) {
+        for (int j = 0; j < 64; ++j) {
+          scene.positions.emplace_back(4.0f * px + i / 63.0f, 4.0f * py + j / 63.0f,
+                                       0.3f * static_cast<float>((i + j) % 5));
+        }
+      }
+    }
+  }
+  const Camera camera = Camera::FromHorizontalFov(640, 480, 60.0, 0.05, 10.0);
+  auto gpu = GpuProjector::Create(scene, ProjectorOptions{}, context_);
+  ASSERT_TRUE(gpu) << gpu.error();
+  std::vector<ProjectedVertex> out;
+  // Along the first row; up the gap between two columns; down onto one patch.
+  const std::vector<Pose3> poses = {
+      LookAt({-3, 0.5, 1.5}, {21, 0.5, 0}), LookAt({10.5, -2, 0.5}, {10.5, 20, 0.5}),
+      LookAt({12.5, 12.5, 3}, {12.5, 12.5, 0}, Eigen::Vector3d::UnitY())};
+  for (size_t k = 0; k < poses.size(); ++k) {
+    SCOPED_TRACE("pose " + std::to_string(k));
+    ASSERT_TRUE((*gpu)->Project(poses[k], camera, &out));
+    EXPECT_GT((*gpu)->last_vertices_considered(), 0u);
+    EXPECT_LT((*gpu)->last_vertices_considered(), scene.num_vertices() / 2);
+    const std::vector<ProjectedVertex> reference = ReferenceFeatures(scene, poses[k], camera);
+    ASSERT_FALSE(reference.empty());
+    EXPECT_EQ(ExpectSameFeatures(out, reference, scene, poses[k], camera), reference.size());
+  }
+  ASSERT_TRUE((*gpu)->Project(LookAt({10, 10, 5}, {10, 10, 50}), camera, &out));
+  EXPECT_EQ((*gpu)->last_vertices_considered(), 0u);
+  EXPECT_TRUE(out.empty());
+}
+
 TEST_F(GpuProjectorTest, AsyncDispatchCollectMatchesSync) {
   const Scene scene = MakeDefaultScene();
   const Camera camera = Camera::FromHorizontalFov(640, 480, 90.0);

@@ -9,9 +9,17 @@
 //  * Create() uploads the scene once: positions into a shader storage buffer (tightly packed
 //    floats, 12 bytes per vertex, shared with the occlusion pass as its vertex buffer) and,
 //    with occlusion, the triangle indices into an index buffer. Output buffers are sized for
-//    every vertex, so nothing is allocated per frame (a GL fence object per frame is the only
+//    every vertex (or, where GL_MAX_SHADER_STORAGE_BLOCK_SIZE is smaller, as many as one
+//    block holds: llvmpipe's 128 MiB is 8.4M features; a frame that sees more fails with a
+//    clear error), so nothing is allocated per frame (a GL fence object per frame is the only
 //    driver object created).
-//  * Per frame only uniforms change. The compute shader transforms each vertex into camera
+//  * Culling: Create() groups the vertices in runs of 4096 consecutive ids, each with its
+//    bounding box (m2s/common/frustum_culling.h, as the CPU projector). Per frame the groups
+//    whose box may be in view (FrustumCuller, 2 px margin, in double) are listed in a small
+//    storage buffer and only their vertices are dispatched; a culled group holds no vertex the
+//    shader could find in view, so the output is the same as projecting every vertex.
+//  * Per frame only uniforms and that list change. The compute shader transforms each vertex into
+//  camera
 //    coordinates, applies the depth-range and image tests, and compacts the visible ones: each
 //    visible vertex reserves its output slot with atomicAdd on one global counter and writes
 //    (id, u, v, depth) there. Only the counter and the used prefix of the output are read back
@@ -71,6 +79,7 @@
 #include <string_view>
 #include <vector>
 
+#include "m2s/common/frustum_culling.h"
 #include "m2s/common/projector.h"
 #include "m2s/common/scene.h"
 #include "m2s/gpu/camera_uniforms.h"
@@ -109,9 +118,12 @@ class GpuProjector : public Projector {
 
   GlContext& context() { return *context_; }
   size_t num_vertices() const { return num_vertices_; }
+  // Vertices in the groups the last Dispatch() sent to the shader (the rest were culled).
+  size_t last_vertices_considered() const { return last_vertices_considered_; }
 
  private:
   struct Slot {
+    GlBuffer groups;        // the indices of the groups in view (a uint each)
     GlBuffer counter;       // one uint
     GlBuffer features;      // num_vertices * 16 bytes
     void* fence = nullptr;  // GLsync
@@ -125,7 +137,11 @@ class GpuProjector : public Projector {
   GlContext* context_ = nullptr;
   ProjectorOptions options_;
   size_t num_vertices_ = 0;
+  size_t capacity_ = 0;  // features the output buffers hold
   GlBuffer positions_;
+  std::vector<CullGroup> vertex_groups_;
+  std::vector<uint32_t> visible_groups_;  // this frame's, uploaded to the slot's buffer
+  size_t last_vertices_considered_ = 0;
   GlProgram program_;
   std::unique_ptr<GpuDepthPass> depth_pass_;  // null without occlusion
   std::array<Slot, kMaxFramesInFlight> slots_;
@@ -133,8 +149,8 @@ class GpuProjector : public Projector {
   int in_flight_ = 0;  // frames dispatched and not collected, oldest at next_slot_ - in_flight_
   // Uniform locations.
   CameraUniformLocations camera_uniforms_;
-  GLint loc_intrinsics_ = -1, loc_range_ = -1, loc_num_vertices_ = -1, loc_depth_size_ = -1,
-        loc_bias_ = -1, loc_depth_ = -1;
+  GLint loc_intrinsics_ = -1, loc_range_ = -1, loc_num_vertices_ = -1, loc_num_groups_ = -1,
+        loc_capacity_ = -1, loc_depth_size_ = -1, loc_bias_ = -1, loc_depth_ = -1;
 };
 
 }  // namespace m2s
