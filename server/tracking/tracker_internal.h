@@ -9,10 +9,12 @@
 
 namespace m2s::slam::tracker_internal {
 
-// A view with fewer associated points than TrackerOptions::min_inliers is tracked when this
-// fraction of them, and at least kMinPoseInliers, are inliers; from the motion prior (the
-// previous frame was tracked) kMinTrackedInliers suffice, so a view that empties for a moment
-// (a hand-held camera turned to a bare wall) keeps its track instead of starting a new map.
+// A view with fewer associated points than TrackerOptions::min_inliers gets a pose when this
+// fraction of them are inliers, and at least kMinTrackedInliers for a pose tracked from the
+// motion prior or relocalised by PnP (so a view that empties for a moment, a hand-held camera
+// turned to a bare wall, keeps its track instead of starting a new map), at least
+// kMinPoseInliers for a rotation-only pose and for the recent points alone to overrule
+// dormant ones.
 constexpr double kSparseViewInlierFraction = 0.75;
 constexpr int kMinPoseInliers = 12;
 constexpr int kMinTrackedInliers = 8;
