@@ -181,11 +181,8 @@ Expected<HeadlessResult> RunHeadless(const HeadlessOptions& options) {
   info.front_end = options.front_end;
   info.ids_are_vertices = options.front_end == "vertex";
 
-  const auto start = Clock::now();
-  auto next_progress = start;
-  const auto period = std::chrono::duration<double>(1.0 / options.fps);
-  int64_t last_seq = 0;
-  for (size_t k = 0; k < num_frames; ++k) {
+  // A frame: the scene events due by its time applied, then the front end's features.
+  auto prepare = [&](size_t k, reporting::FrontEndTime* time) -> Expected<wire::FeatureFrame> {
     const TimedPose& pose = (*resampled)[k];
     for (; next_event < events.size() &&
            events[next_event].time_s <= pose.timestamp - (*resampled)[0].timestamp;
@@ -195,6 +192,24 @@ Expected<HeadlessResult> RunHeadless(const HeadlessOptions& options) {
           change ? followed->ApplyChange(editor->scene(), *change) : change.status();
       if (!applied) return applied.Prefixed("scene event " + std::to_string(next_event + 1) + ": ");
     }
+    auto frame =
+        frame_maker->Make(pose.world_from_camera, std::llround(pose.timestamp * 1e6), k, time);
+    if (!frame) {
+      return Status::Error((frame_maker->orb ? "ORB front end failed: " : "projection failed: ") +
+                           frame.error());
+    }
+    return frame;
+  };
+
+  const auto start = Clock::now();
+  auto next_progress = start;
+  const auto period = std::chrono::duration<double>(1.0 / options.fps);
+  int64_t last_seq = 0;
+  // With --fast, frame k + 1 is made while the server tracks frame k (the front end does not
+  // depend on the answer), and sent once frame k's pose is back, as without the overlap.
+  std::optional<Expected<wire::FeatureFrame>> ahead;
+  reporting::FrontEndTime ahead_time;
+  for (size_t k = 0; k < num_frames; ++k) {
     if (!options.fast) {
       const auto due = start + std::chrono::duration_cast<Clock::duration>(period * k);
       const auto now = Clock::now();
@@ -205,18 +220,25 @@ Expected<HeadlessResult> RunHeadless(const HeadlessOptions& options) {
       std::this_thread::sleep_until(due);
     }
     reporting::FrontEndTime time;
-    auto frame =
-        frame_maker->Make(pose.world_from_camera, std::llround(pose.timestamp * 1e6), k, &time);
-    if (!frame) {
-      return Status::Error((frame_maker->orb ? "ORB front end failed: " : "projection failed: ") +
-                           frame.error());
+    Expected<wire::FeatureFrame> frame = Status::Error("no frame");
+    if (ahead) {
+      frame = std::move(*ahead);
+      time = ahead_time;
+      ahead.reset();
+    } else {
+      frame = prepare(k, &time);
     }
+    if (!frame) return frame.status();
     auto seq = session.Send(std::move(*frame));
     if (!seq) return seq.status();
     last_seq = *seq;
     time.seq = *seq;
     info.front_end_times.push_back(time);
     if (options.on_frame_sent) options.on_frame_sent(static_cast<int64_t>(k));
+    if (options.fast && k + 1 < num_frames) {
+      ahead_time = reporting::FrontEndTime{};
+      ahead = prepare(k + 1, &ahead_time);
+    }
     if (options.fast && !session.WaitForPose(last_seq, options.pose_timeout_s) &&
         session.Counters().poses_received == 0) {
       break;  // nobody answers; reported below

@@ -131,10 +131,31 @@ void CpuProjector::Impl::RasterizeBand(int band, int num_bands) {
     const internal::CullGroup& group = triangle_groups[visible_triangle_groups[k]];
     if (box.bounded && box.min_depth >= camera.near && box.max_depth <= camera.far) {
       // Every corner lies between near and far: no clipping, no depth checks per triangle.
-      for (size_t t = group.begin; t < group.end; ++t) RasterizeInFront(&triangles[3 * t], b);
+      RasterizeGroupInFront(group, band, b);
     } else {
       for (size_t t = group.begin; t < group.end; ++t) RasterizeTriangleAt(t, b);
     }
+  }
+}
+
+void CpuProjector::Impl::RasterizeGroupInFront(const internal::CullGroup& group, int band,
+                                               const Band& b) {
+  AlignedVector<uint8_t>& keep = scratch[band].keep;
+  const size_t n = group.end - group.begin;
+  if (keep.size() < n) keep.resize(n);
+  const uint32_t* first = &triangles[3 * size_t{group.begin}];
+  internal::MayCoverPixelCentres(first, n, all_cells.data(), keep.data());
+  size_t i = 0;
+  for (; i + 8 <= n; i += 8) {  // most of a dense scan's triangles cover no pixel centre
+    uint64_t word;
+    std::memcpy(&word, keep.data() + i, sizeof(word));
+    if (word == 0) continue;
+    for (size_t j = i; j < i + 8; ++j) {
+      if (keep[j]) RasterizeInFront(first + 3 * j, b);
+    }
+  }
+  for (; i < n; ++i) {
+    if (keep[i]) RasterizeInFront(first + 3 * i, b);
   }
 }
 

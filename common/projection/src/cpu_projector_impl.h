@@ -36,6 +36,7 @@ struct CpuProjector::Impl {
   struct WorkerScratch {
     AlignedVector<float> u, v, depth;
     AlignedVector<uint8_t> visible;
+    AlignedVector<uint8_t> keep;       // per triangle of a group: may cover a pixel centre
     std::vector<ProjectedVertex> out;  // grows to the chunk size + 1, never shrinks
     size_t count = 0;
     size_t tested = 0;  // vertices of the groups this worker depth-tested in the last frame
@@ -121,6 +122,9 @@ struct CpuProjector::Impl {
   void RasterizeTriangleAt(size_t t, const Band& band);
   // A triangle whose corners are all at depth >= near.
   void RasterizeInFront(const uint32_t* idx, const Band& band);
+  // The triangles of `group` (all corners between near and far) that may cover a pixel centre
+  // (found for the whole group at once, in scratch[band].keep).
+  void RasterizeGroupInFront(const internal::CullGroup& group, int band, const Band& b);
   void TestChunk(int worker);
   // Appends the vertices of [begin, end) that pass the depth test to out[count...]; returns
   // the new count.

@@ -123,11 +123,17 @@ inline constexpr uint16_t kUnknownCell = 0x8000;
 void PixelCells(const float* u, const float* v, size_t n, float scale_x, float scale_y,
                 uint32_t* cells);
 // True when the triangle with these corner cells certainly covers no pixel centre.
+// Branch-free (non-short-circuit '&', '|'): MayCoverPixelCentres vectorises it.
 inline bool CoversNoPixelCentre(uint32_t c0, uint32_t c1, uint32_t c2) {
   const uint32_t differ = (c0 ^ c1) | (c0 ^ c2);
-  return ((differ & 0xFFFFu) == 0 && (c0 & 0xFFFFu) != kUnknownCell) ||
-         ((differ >> 16) == 0 && (c0 >> 16) != kUnknownCell);
+  return (((differ & 0xFFFFu) == 0) & ((c0 & 0xFFFFu) != kUnknownCell)) |
+         (((differ >> 16) == 0) & ((c0 >> 16) != kUnknownCell));
 }
+// keep[t] = 1 unless triangle t (corners triangles[3t], [3t + 1], [3t + 2]) certainly covers
+// no pixel centre (CoversNoPixelCentre), for t < n. A dense scan's triangles are mostly far
+// below a pixel: this one loop rejects them without a branch per triangle.
+void MayCoverPixelCentres(const uint32_t* triangles, size_t n, const uint32_t* cells,
+                          uint8_t* keep);
 
 // Appends (first_id + i, u[i], v[i], depth[i]) for every i < n with visible[i] to `out`,
 // which must have room for n + 1 entries; returns the number written.

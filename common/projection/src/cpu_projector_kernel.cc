@@ -2,6 +2,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 
 #include "cpu_projector_internal.h"
 
@@ -118,11 +119,14 @@ void TransformVertices(const FrameConstants& k, const float* __restrict x,
 
 namespace {
 
-uint32_t PixelCell(float scaled) {
+// Branch-free (selects, no early return), so that the loop below vectorises (this file is
+// compiled with -fno-trapping-math, which lets the compiler evaluate both sides of a select).
+inline uint32_t PixelCell(float scaled) {
   const double x = static_cast<double>(scaled) - 0.5;
   const double cell = std::floor(x);
-  if (!std::isfinite(x) || cell == x) return kUnknownCell;
-  return static_cast<uint16_t>(static_cast<int16_t>(std::clamp(cell, -2.0, 32766.0)));
+  const bool unknown = !(std::abs(x) <= std::numeric_limits<double>::max()) || cell == x;
+  const double known = unknown ? 0.0 : std::min(std::max(cell, -2.0), 32766.0);
+  return unknown ? uint32_t{kUnknownCell} : static_cast<uint32_t>(static_cast<int>(known) & 0xFFFF);
 }
 
 }  // namespace
@@ -132,6 +136,16 @@ void PixelCells(const float* __restrict u, const float* __restrict v, size_t n, 
                 float scale_y, uint32_t* __restrict cells) {
   for (size_t i = 0; i < n; ++i)
     cells[i] = PixelCell(u[i] * scale_x) | PixelCell(v[i] * scale_y) << 16;
+}
+
+M2S_KERNEL_CLONES
+void MayCoverPixelCentres(const uint32_t* __restrict triangles, size_t n,
+                          const uint32_t* __restrict cells, uint8_t* __restrict keep) {
+  for (size_t t = 0; t < n; ++t) {
+    const uint32_t* corner = triangles + 3 * t;
+    keep[t] = static_cast<uint8_t>(
+        !CoversNoPixelCentre(cells[corner[0]], cells[corner[1]], cells[corner[2]]));
+  }
 }
 
 size_t CompactVisible(const float* __restrict u, const float* __restrict v,
