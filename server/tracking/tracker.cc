@@ -9,7 +9,7 @@
 
 namespace m2s::slam {
 
-using tracker_internal::kMinPoseInliers;
+using tracker_internal::kMinOverrulingPoints;
 using tracker_internal::kMinTrackedInliers;
 using tracker_internal::kSparseViewInlierFraction;
 using tracker_internal::MakePoseOptions;
@@ -236,7 +236,7 @@ bool Tracker::TrackWithModel(const Association& a, Pose3* camera_from_world,
   // Too few recent points to weigh them against the dormant ones, and together they do not
   // fit one pose: the dormant ones may have drifted (or never been well placed), so the
   // recent points alone decide, as they would in a view with many of them.
-  if (a.num_dormant == 0 || num_active < kMinPoseInliers) return false;
+  if (a.num_dormant == 0 || num_active < kMinOverrulingPoints) return false;
   if (!solve(/*skip_dormant=*/true, &pose)) return false;
   *camera_from_world = pose;
   return Classify(a, pose, true, inlier) >= required_active;

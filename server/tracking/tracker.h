@@ -122,7 +122,7 @@ class Tracker {
                          Pose3* camera_from_world, std::vector<bool>* inlier, bool* keyframe);
   // Inliers a pose classified on `num_points` associated points needs:
   // TrackerOptions::min_inliers, or in a sparse view (fewer points) 75 % of them and at least
-  // `floor` (tracker_internal: kMinPoseInliers, or kMinTrackedInliers from a motion prior).
+  // `floor` (tracker_internal.h says which floor serves which pose).
   int RequiredInliers(int num_points, int floor) const;
   // Marks the points reprojecting within the chi-square bound; returns their number.
   int Classify(const Association& a, const Pose3& camera_from_world, bool skip_dormant,

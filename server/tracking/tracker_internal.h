@@ -10,14 +10,17 @@
 namespace m2s::slam::tracker_internal {
 
 // A view with fewer associated points than TrackerOptions::min_inliers gets a pose when this
-// fraction of them are inliers, and at least kMinTrackedInliers for a pose tracked from the
-// motion prior or relocalised by PnP (so a view that empties for a moment, a hand-held camera
-// turned to a bare wall, keeps its track instead of starting a new map), at least
-// kMinPoseInliers for a rotation-only pose and for the recent points alone to overrule
-// dormant ones.
+// fraction of them are inliers and there are at least:
+//  - kMinTrackedInliers for a pose tracked from the motion prior or relocalised by PnP (so a
+//    view that empties for a moment, a hand-held camera turned to a bare wall, keeps its track
+//    instead of starting a new map);
+//  - kMinRotationOnlyInliers for a rotation-only pose (bearings to the reference keyframe);
+//    as many map points in view must agree with it, when there are that many to judge;
+//  - kMinOverrulingPoints recent points for them alone to overrule dormant ones.
 constexpr double kSparseViewInlierFraction = 0.75;
-constexpr int kMinPoseInliers = 12;
 constexpr int kMinTrackedInliers = 8;
+constexpr int kMinRotationOnlyInliers = 12;
+constexpr int kMinOverrulingPoints = 12;
 
 // Pose-only refinement options for the measurement model: Huber at the inlier bound.
 inline PoseOnlyOptions MakePoseOptions(const MeasurementModel& model) {

@@ -16,7 +16,7 @@
 
 namespace m2s::slam {
 
-using tracker_internal::kMinPoseInliers;
+using tracker_internal::kMinRotationOnlyInliers;
 using tracker_internal::kMinTrackedInliers;
 using tracker_internal::kSparseViewInlierFraction;
 using tracker_internal::MakePoseOptions;
@@ -110,14 +110,14 @@ bool Tracker::TrackRotationOnly(const SortedFeatures& features, const Associatio
     keyframe_features = ids.size();
     r = SolveRotationOnly(model_.camera, max_error_px, *a.reference_pose, ids, uvs, features);
   });
-  if (!r || r->inliers < kMinPoseInliers ||
+  if (!r || r->inliers < kMinRotationOnlyInliers ||
       r->inliers < kSparseViewInlierFraction * static_cast<double>(r->shared)) {
     return false;
   }
   // The map points in view must agree with the rotation, when there are enough to judge (a
   // handful of fresh, noisy points does not outvote a thousand bearings).
   const int fitting = Classify(a, r->camera_from_world, /*skip_dormant=*/false, inlier);
-  if (static_cast<int>(a.ids.size()) >= kMinPoseInliers &&
+  if (static_cast<int>(a.ids.size()) >= kMinRotationOnlyInliers &&
       fitting < kSparseViewInlierFraction * static_cast<double>(a.ids.size())) {
     return false;
   }

@@ -1,6 +1,8 @@
 #include "m2s/client/frame_source.h"
 
 #include <chrono>
+#include <utility>
+#include <vector>
 
 #include "m2s/common/feature_rank.h"
 
@@ -26,22 +28,15 @@ Expected<wire::FeatureFrame> FrameSource::Make(const Pose3& world_from_camera,
   frame.capture_time_us = capture_time_us;
   frame.camera = camera_;
   frame.ground_truth_world_from_camera = world_from_camera;
-  // The in-image vertices, then the balanced selection of them (KeepBalanced's, without a
-  // frame-sized copy: a view of a large scene holds millions of vertices).
-  in_image_.clear();
-  ids_.clear();
-  cells_.clear();
-  for (uint32_t k = 0; k < scratch_.size(); ++k) {
-    const ProjectedVertex& p = scratch_[k];
-    if (!camera_.InImage(p.u, p.v)) continue;
-    in_image_.push_back(k);
-    ids_.push_back(p.id);
-    cells_.push_back(send_grid_.CellOf(p.u, p.v));
-  }
-  const std::vector<uint32_t> kept = SelectBalanced(ids_, cells_, send_budget_);
+  // The in-image vertices, then the balanced selection of them.
+  std::erase_if(scratch_, [this](const ProjectedVertex& p) { return !camera_.InImage(p.u, p.v); });
+  const std::vector<uint32_t>& kept = selector_.Select(
+      scratch_.size(), [this](size_t i) { return scratch_[i].id; },
+      [this](size_t i) { return std::pair(scratch_[i].u, scratch_[i].v); }, send_grid_,
+      send_budget_);
   frame.features.reserve(kept.size());
   for (const uint32_t j : kept) {
-    const ProjectedVertex& p = scratch_[in_image_[j]];
+    const ProjectedVertex& p = scratch_[j];
     VertexFeature f;
     f.id = p.id;
     f.uv = {p.u, p.v};

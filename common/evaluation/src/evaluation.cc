@@ -93,46 +93,49 @@ struct MatchedPoses {
 // follows the estimate's noise, and a map judged with it is wrong by metres.
 constexpr double kStraightRatio = 1e-3;
 
-// The principal direction of the centred points and the ratio of their second principal extent
+// The mean and principal direction of points, and the ratio of their second principal extent
 // to their first (0 when all points coincide).
-std::pair<Eigen::Vector3d, double> PrincipalLine(const std::vector<Eigen::Vector3d>& points) {
+struct PrincipalLine {
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-  for (const Eigen::Vector3d& p : points) mean += p;
-  mean /= static_cast<double>(points.size());
+  Eigen::Vector3d axis = Eigen::Vector3d::UnitX();
+  double ratio = 0.0;
+};
+
+PrincipalLine FindPrincipalLine(const std::vector<Eigen::Vector3d>& points) {
+  PrincipalLine line;
+  for (const Eigen::Vector3d& p : points) line.mean += p;
+  line.mean /= static_cast<double>(points.size());
   Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
-  for (const Eigen::Vector3d& p : points) scatter.noalias() += (p - mean) * (p - mean).transpose();
+  for (const Eigen::Vector3d& p : points)
+    scatter.noalias() += (p - line.mean) * (p - line.mean).transpose();
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(scatter);  // ascending
   const Eigen::Vector3d lambda = eigen.eigenvalues().cwiseMax(0.0);
-  const double ratio = lambda(2) > 0.0 ? std::sqrt(lambda(1) / lambda(2)) : 0.0;
-  return {eigen.eigenvectors().col(2), ratio};
+  line.ratio = lambda(2) > 0.0 ? std::sqrt(lambda(1) / lambda(2)) : 0.0;
+  line.axis = eigen.eigenvectors().col(2);
+  return line;
 }
 
-// The alignment of a straight reference: the estimate's line onto the reference's (Umeyama's
-// rotation and scale when it has one, else the principal directions), then the rotation about
-// the reference's line that best fits the matched orientations in the chordal sense,
+// The alignment of a straight reference (its principal line `ref`; `est` the estimate's): the
+// estimate's line onto the reference's (Umeyama's rotation and scale when it has one, else the
+// principal directions), then the rotation about the reference's line that best fits the
+// matched orientations in the chordal sense,
 // argmax_phi sum_i trace(Rot(a, phi) N_i) with N_i = R0 R_est_i R_ref_i^T, which is
 // phi = atan2(B, A) for A = tr N - a^T N a and B = a . (N12 - N21, N20 - N02, N01 - N10).
-std::optional<Sim3> AlignStraight(const MatchedPoses& m, const std::optional<Sim3>& umeyama,
+std::optional<Sim3> AlignStraight(const MatchedPoses& m, const PrincipalLine& ref,
+                                  const PrincipalLine& est, const std::optional<Sim3>& umeyama,
                                   bool with_scale) {
-  const Eigen::Vector3d axis = PrincipalLine(m.reference).first;
-  Eigen::Vector3d mean_ref = Eigen::Vector3d::Zero(), mean_est = Eigen::Vector3d::Zero();
-  for (size_t i = 0; i < m.reference.size(); ++i) {
-    mean_ref += m.reference[i];
-    mean_est += m.estimate[i];
-  }
-  mean_ref /= static_cast<double>(m.reference.size());
-  mean_est /= static_cast<double>(m.estimate.size());
+  const Eigen::Vector3d& axis = ref.axis;
   Eigen::Matrix3d r0;
   double scale = 1.0;
   if (umeyama) {
     r0 = umeyama->rotation().toRotationMatrix();
     scale = umeyama->scale();
   } else {
-    Eigen::Vector3d est_axis = PrincipalLine(m.estimate).first;
+    Eigen::Vector3d est_axis = est.axis;
     double along = 0.0, est_spread = 0.0;
     for (size_t i = 0; i < m.reference.size(); ++i) {
-      along += (m.reference[i] - mean_ref).dot(axis) * (m.estimate[i] - mean_est).dot(est_axis);
-      est_spread += (m.estimate[i] - mean_est).squaredNorm();
+      along += (m.reference[i] - ref.mean).dot(axis) * (m.estimate[i] - est.mean).dot(est_axis);
+      est_spread += (m.estimate[i] - est.mean).squaredNorm();
     }
     if (along < 0.0) est_axis = -est_axis;
     r0 = Eigen::Quaterniond::FromTwoVectors(est_axis, axis).toRotationMatrix();
@@ -148,7 +151,7 @@ std::optional<Sim3> AlignStraight(const MatchedPoses& m, const std::optional<Sim
       axis.dot(Eigen::Vector3d(n(1, 2) - n(2, 1), n(2, 0) - n(0, 2), n(0, 1) - n(1, 0)));
   const Eigen::Matrix3d r = Eigen::AngleAxisd(std::atan2(b, a), axis).toRotationMatrix() * r0;
   if (!(scale > 0.0) || !std::isfinite(scale) || !r.allFinite()) return std::nullopt;
-  return Sim3(scale, Eigen::Quaterniond(r), mean_ref - scale * r * mean_est);
+  return Sim3(scale, Eigen::Quaterniond(r), ref.mean - scale * r * est.mean);
 }
 
 // The alignment of matched poses (identity for kNone): Umeyama on the positions (evo's), with
@@ -157,9 +160,13 @@ Expected<Sim3> AlignMatched(const MatchedPoses& matched, Alignment kind) {
   if (kind == Alignment::kNone) return Sim3::Identity();
   const bool with_scale = kind == Alignment::kSim3;
   std::optional<Sim3> alignment = AlignPoints(matched.estimate, matched.reference, with_scale);
-  if (matched.reference.size() >= 3 && PrincipalLine(matched.reference).second < kStraightRatio &&
-      (alignment || PrincipalLine(matched.estimate).second < kStraightRatio)) {
-    alignment = AlignStraight(matched, alignment, with_scale);
+  if (matched.reference.size() >= 3) {
+    const PrincipalLine ref = FindPrincipalLine(matched.reference);
+    if (ref.ratio < kStraightRatio) {
+      const PrincipalLine est = FindPrincipalLine(matched.estimate);
+      if (alignment || est.ratio < kStraightRatio)
+        alignment = AlignStraight(matched, ref, est, alignment, with_scale);
+    }
   }
   if (!alignment) {
     return Expected<Sim3>::Error(std::string(AlignmentName(kind)) +

@@ -123,14 +123,14 @@ std::vector<uint32_t> SelectBalanced(std::span<const VertexId> ids, std::span<co
 size_t KeepBalanced(int budget, const FeatureGrid& grid, std::vector<VertexFeature>* features) {
   const size_t n = features->size();
   if (budget <= 0 || n <= static_cast<size_t>(budget)) return 0;
-  std::vector<VertexId> ids(n);
-  std::vector<int> cells(n);
-  for (size_t i = 0; i < n; ++i) {
-    const VertexFeature& f = (*features)[i];
-    ids[i] = f.id;
-    cells[i] = grid.CellOf(f.uv.x(), f.uv.y());
-  }
-  const std::vector<uint32_t> kept = SelectBalanced(ids, cells, budget);
+  BalancedSelector selector;
+  const std::vector<uint32_t>& kept = selector.Select(
+      n, [features](size_t i) { return (*features)[i].id; },
+      [features](size_t i) {
+        const Eigen::Vector2f& uv = (*features)[i].uv;
+        return std::pair(uv.x(), uv.y());
+      },
+      grid, budget);
   for (size_t k = 0; k < kept.size(); ++k) (*features)[k] = (*features)[kept[k]];
   features->resize(kept.size());
   return n - kept.size();

@@ -45,9 +45,7 @@ class FrameSource {
   const FeatureGrid send_grid_;
   // Per-frame buffers kept between frames (no page faults on millions of features).
   std::vector<ProjectedVertex> scratch_;
-  std::vector<uint32_t> in_image_;  // indices into scratch_
-  std::vector<VertexId> ids_;
-  std::vector<int> cells_;
+  BalancedSelector selector_;
   double last_projection_ms_ = 0.0;
 };
 

@@ -31,6 +31,7 @@
 #include <cmath>
 #include <cstdint>
 #include <span>
+#include <utility>
 #include <vector>
 
 #include "m2s/common/types.h"
@@ -79,6 +80,32 @@ struct FeatureGrid {
 // kept when budget <= 0 or there are not more than `budget` features.
 std::vector<uint32_t> SelectBalanced(std::span<const VertexId> ids, std::span<const int> cells,
                                      int budget);
+
+// Balanced selection over any feature layout, with buffers kept between calls (a view of
+// millions of features allocates nothing per frame in steady state).
+class BalancedSelector {
+ public:
+  // The indices (ascending) SelectBalanced keeps among n features; feature i has the id
+  // id_of(i) and the image point uv_of(i), a pair (u, v).
+  template <typename IdOf, typename UvOf>
+  const std::vector<uint32_t>& Select(size_t n, IdOf id_of, UvOf uv_of, const FeatureGrid& grid,
+                                      int budget) {
+    ids_.resize(n);
+    cells_.resize(n);
+    for (size_t i = 0; i < n; ++i) {
+      ids_[i] = id_of(i);
+      const auto [u, v] = uv_of(i);
+      cells_[i] = grid.CellOf(u, v);
+    }
+    kept_ = SelectBalanced(ids_, cells_, budget);
+    return kept_;
+  }
+
+ private:
+  std::vector<VertexId> ids_;
+  std::vector<int> cells_;
+  std::vector<uint32_t> kept_;
+};
 
 // Keeps the features SelectBalanced chooses, in their order. Returns the number removed.
 size_t KeepBalanced(int budget, const FeatureGrid& grid, std::vector<VertexFeature>* features);
