@@ -178,6 +178,8 @@ Expected<RunMetrics> RunAccuracy(const Scene& scene, const Sequence& sequence,
   source_options.vertex_stride = config.vertex_stride;
   source_options.noise.seed = config.noise_seed;
   source_options.occlusion = config.occlusion;
+  source_options.projector_threads = config.projector_threads;
+  source_options.send_budget = config.send_budget;
   if (config.noisy) {
     source_options.noise.pixel_noise_sigma = config.noise_px;
     source_options.noise.wrong_id_fraction = config.wrong_id_fraction;
@@ -215,7 +217,7 @@ Expected<RunMetrics> RunAccuracy(const Scene& scene, const Sequence& sequence,
     slam::Frame frame;
     for (size_t i = 0; i < (*source)->size(); ++i) {
       if (Status s = (*source)->MakeFrame(i, &frame); !s) return Status::Error(s.message());
-      visible[i] = static_cast<int>(frame.features.size());
+      visible[i] = static_cast<int>((*source)->last_visible());
       const auto t0 = Clock::now();
       results.push_back(system.Track(frame));
       times_ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
@@ -225,7 +227,7 @@ Expected<RunMetrics> RunAccuracy(const Scene& scene, const Sequence& sequence,
     std::vector<slam::Frame> frames((*source)->size());
     for (size_t i = 0; i < frames.size(); ++i) {
       if (Status s = (*source)->MakeFrame(i, &frames[i]); !s) return Status::Error(s.message());
-      visible[i] = static_cast<int>(frames[i].features.size());
+      visible[i] = static_cast<int>((*source)->last_visible());
     }
     std::atomic<bool> producer_done{false};
     std::thread consumer([&] {

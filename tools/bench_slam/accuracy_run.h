@@ -27,7 +27,9 @@ struct RunConfig {
   double noise_px = 0.5;
   double wrong_id_fraction = 0.01;
   uint64_t noise_seed = 1;
-  bool occlusion = true;  // hide vertices behind the scene's triangles (projector.h)
+  bool occlusion = true;      // hide vertices behind the scene's triangles (projector.h)
+  int projector_threads = 1;  // the CPU projector's workers (0: one per core)
+  int send_budget = 0;        // FrameSourceOptions::send_budget (0: every visible vertex)
   // Frames without a pose after initialisation count as untracked only when at least this many
   // vertices are visible; the others are counted apart (RunMetrics::untracked_few_visible).
   int min_visible_for_lost = 0;

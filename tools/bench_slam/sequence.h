@@ -14,6 +14,7 @@
 #include "m2s/common/camera.h"
 #include "m2s/common/cpu_projector.h"
 #include "m2s/common/feature_noise.h"
+#include "m2s/common/feature_rank.h"
 #include "m2s/common/scene.h"
 #include "m2s/common/status.h"
 #include "m2s/common/trajectory.h"
@@ -43,6 +44,10 @@ struct FrameSourceOptions {
   // that successive frames see the same points; 1: every vertex).
   int vertex_stride = 1;
   int projector_threads = 1;
+  // As a client sends them: the balanced selection of this many features (KeepBalanced on the
+  // camera's grid), after the noise. 0: every visible vertex (SLAM's feature_budget selects
+  // the same subset; a large world's millions would exceed max_features_per_frame).
+  int send_budget = 0;
 };
 
 class FrameSource {
@@ -53,6 +58,8 @@ class FrameSource {
   size_t size() const { return ground_truth_.size(); }
   const Trajectory& ground_truth() const { return ground_truth_; }
   Status MakeFrame(size_t index, slam::Frame* frame);
+  // The vertices the last MakeFrame saw (before the send budget).
+  size_t last_visible() const { return last_visible_; }
 
  private:
   FrameSource() = default;
@@ -62,6 +69,8 @@ class FrameSource {
   uint32_t num_vertices_ = 0;
   std::unique_ptr<CpuProjector> projector_;
   std::vector<ProjectedVertex> projected_;
+  BalancedSelector selector_;
+  size_t last_visible_ = 0;
 };
 
 }  // namespace m2s::bench

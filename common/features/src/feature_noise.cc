@@ -62,41 +62,59 @@ bool InImage(const ProjectedVertex& f, const Camera& camera) {
          f.v < static_cast<float>(camera.height);
 }
 
+bool ById(const ProjectedVertex& a, const ProjectedVertex& b) { return a.id < b.id; }
+
+// Sorts by id (ids are distinct, so the order is unique); projectors mostly deliver that order.
+void SortById(std::vector<ProjectedVertex>* features) {
+  if (!std::is_sorted(features->begin(), features->end(), ById))
+    std::sort(features->begin(), features->end(), ById);
+}
+
 void ApplyWrongIds(const FeatureNoiseOptions& o, uint32_t num_vertices, uint64_t frame,
                    std::vector<ProjectedVertex>* features) {
-  // Process in id order so the assignment of replacement ids is order-independent.
-  std::sort(features->begin(), features->end(),
-            [](const ProjectedVertex& a, const ProjectedVertex& b) { return a.id < b.id; });
-  std::unordered_set<VertexId> taken;
-  taken.reserve(features->size() * 2);
-  for (const ProjectedVertex& f : *features) taken.insert(f.id);
-  std::vector<ProjectedVertex> out;
-  out.reserve(features->size());
-  for (ProjectedVertex f : *features) {
+  // Process in id order so the assignment of replacement ids is order-independent. An id is
+  // taken when a feature of the frame has it or it was handed out as a replacement.
+  SortById(features);
+  std::vector<VertexId> frame_ids(features->size());
+  for (size_t i = 0; i < features->size(); ++i) frame_ids[i] = (*features)[i].id;
+  std::unordered_set<VertexId> handed_out;
+  auto taken = [&](VertexId id) {
+    return std::binary_search(frame_ids.begin(), frame_ids.end(), id) || handed_out.count(id) != 0;
+  };
+  size_t kept = 0;
+  std::vector<ProjectedVertex> replaced;
+  for (size_t i = 0; i < features->size(); ++i) {
+    ProjectedVertex f = (*features)[i];
     if (Rng(o.seed, frame, f.id, Stage::kWrongId).Uniform() >= o.wrong_id_fraction) {
-      out.push_back(f);
+      (*features)[kept++] = f;
       continue;
     }
-    if (taken.size() >= num_vertices) continue;  // no unused id left: drop the feature
+    const size_t num_taken = frame_ids.size() + handed_out.size();
+    if (num_taken >= num_vertices) continue;  // no unused id left: drop the feature
     Rng rng(o.seed, frame, f.id, Stage::kWrongIdValue);
-    const size_t free_ids = num_vertices - taken.size();
+    const size_t free_ids = num_vertices - num_taken;
     VertexId id;
     if (free_ids * 8 >= num_vertices) {
       do {
         id = rng.Below(num_vertices);
-      } while (taken.count(id) != 0);  // expected fewer than 8 draws
+      } while (taken(id));  // expected fewer than 8 draws
     } else {
       // Few free ids: pick the k-th free one directly.
       uint32_t k = rng.Below(static_cast<uint32_t>(free_ids));
       for (id = 0;; ++id) {
-        if (taken.count(id) == 0 && k-- == 0) break;
+        if (!taken(id) && k-- == 0) break;
       }
     }
-    taken.insert(id);
+    handed_out.insert(id);
     f.id = id;
-    out.push_back(f);
+    replaced.push_back(f);
   }
-  features->swap(out);
+  // The kept features are still in id order: merge the (few) replaced ones in.
+  features->resize(kept);
+  std::sort(replaced.begin(), replaced.end(), ById);
+  const auto middle = static_cast<std::ptrdiff_t>(features->size());
+  features->insert(features->end(), replaced.begin(), replaced.end());
+  std::inplace_merge(features->begin(), features->begin() + middle, features->end(), ById);
 }
 
 }  // namespace
@@ -125,8 +143,7 @@ void ApplyFeatureNoise(const FeatureNoiseOptions& o, const Camera& camera,
   M2S_CHECK(valid) << valid.message();
   M2S_CHECK(features != nullptr);
   if (!o.Enabled()) {
-    std::sort(features->begin(), features->end(),
-              [](const ProjectedVertex& a, const ProjectedVertex& b) { return a.id < b.id; });
+    SortById(features);
     return;
   }
   const double q = o.quantization_px;
@@ -154,8 +171,7 @@ void ApplyFeatureNoise(const FeatureNoiseOptions& o, const Camera& camera,
   }
   features->resize(kept);
   if (o.wrong_id_fraction > 0) ApplyWrongIds(o, num_scene_vertices, frame_index, features);
-  std::sort(features->begin(), features->end(),
-            [](const ProjectedVertex& a, const ProjectedVertex& b) { return a.id < b.id; });
+  SortById(features);
 }
 
 }  // namespace m2s
