@@ -11,6 +11,7 @@
 //   bench_scenes --mesh dragons.ply --trajectory walk.tum --name large-world
 //                                    # one scene file with its own trajectory (the large-world
 //                                    # row; the projector uses every core)
+//   bench_scenes ... --dump out/     # each run's aligned estimate and ground truth (TUM)
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
@@ -99,11 +100,13 @@ bool Selected(const std::vector<std::string>& wanted, const std::string& name) {
 // Runs `sequence` through `scene` in every selected mode, printing (and collecting) the rows.
 bool RunModes(const m2s::Scene& scene, const std::string& scene_name, const std::string& motion,
               const m2s::bench::Sequence& sequence, const std::vector<std::string>& modes,
-              m2s::bench::RunConfig config, nlohmann::json* rows) {
+              m2s::bench::RunConfig config, const std::string& dump_dir, nlohmann::json* rows) {
   for (const Mode& mode : kModes) {
     if (!Selected(modes, mode.name)) continue;
     config.noisy = mode.noisy;
     config.occlusion = mode.occlusion;
+    if (!dump_dir.empty())
+      config.dump_prefix = dump_dir + "/" + scene_name + "_" + motion + "_" + mode.name;
     m2s::Expected<RunMetrics> metrics = m2s::bench::RunAccuracy(scene, sequence, config);
     if (!metrics) {
       std::cerr << "bench_scenes: " << sequence.name << " " << mode.name << ": " << metrics.error()
@@ -121,7 +124,8 @@ bool RunModes(const m2s::Scene& scene, const std::string& scene_name, const std:
 // trajectory's file name without its extension).
 int RunSceneFile(const std::string& mesh, const std::string& trajectory_path,
                  const std::string& name, const std::vector<std::string>& modes,
-                 const m2s::bench::RunConfig& config, nlohmann::json* rows) {
+                 const m2s::bench::RunConfig& config, const std::string& dump_dir,
+                 nlohmann::json* rows) {
   m2s::Expected<m2s::Scene> scene = m2s::LoadScene(mesh);
   if (!scene) {
     std::cerr << "bench_scenes: " << scene.error() << "\n";
@@ -136,7 +140,7 @@ int RunSceneFile(const std::string& mesh, const std::string& trajectory_path,
   motion = motion.substr(0, motion.find_last_of('.'));
   const m2s::bench::Sequence sequence{name + "/" + motion, std::move(*trajectory)};
   PrintHeader();
-  return RunModes(*scene, name, motion, sequence, modes, config, rows) ? 0 : 1;
+  return RunModes(*scene, name, motion, sequence, modes, config, dump_dir, rows) ? 0 : 1;
 }
 
 bool WriteRows(const std::string& path, const nlohmann::json& rows) {
@@ -189,6 +193,10 @@ int main(int argc, char** argv) {
       ->needs(mesh_option);
   mesh_option->needs(app.get_option("--trajectory"));
   app.add_option("--name", name, "the scene column for --mesh");
+  std::string dump_dir;
+  app.add_option("--dump", dump_dir,
+                 "write each run's aligned estimate and ground truth there as TUM "
+                 "(<scene>_<motion>_<mode>_estimate.tum, _truth.tum)");
   CLI11_PARSE(app, argc, argv);
 
   if (!mesh.empty()) {
@@ -198,7 +206,7 @@ int main(int argc, char** argv) {
     config.projector_threads = 0;
     config.send_budget = m2s::slam::Options().feature_budget;  // as m2s_client sends
     nlohmann::json rows = nlohmann::json::array();
-    const int rc = RunSceneFile(mesh, trajectory_path, name, modes, config, &rows);
+    const int rc = RunSceneFile(mesh, trajectory_path, name, modes, config, dump_dir, &rows);
     return rc != 0 ? rc : (WriteRows(json_path, rows) ? 0 : 1);
   }
 
@@ -262,7 +270,8 @@ int main(int argc, char** argv) {
       m2s::bench::RunConfig config;
       config.fps = fps;
       config.min_visible_for_lost = min_visible;
-      if (!RunModes(composed->scene, spec.name, motion, sequence, modes, config, &rows)) return 1;
+      if (!RunModes(composed->scene, spec.name, motion, sequence, modes, config, dump_dir, &rows))
+        return 1;
     }
   }
   if (!WriteRows(json_path, rows)) return 1;
