@@ -66,8 +66,10 @@ int OcclusionBufferSize(int image_size, double scale) {
 }
 
 Expected<std::unique_ptr<GpuDepthPass>> GpuDepthPass::Create(
-    GLuint positions, const std::vector<uint32_t>& triangles) {
+    GLuint positions_buffer, std::span<const Eigen::Vector3f> positions,
+    const std::vector<uint32_t>& triangles) {
   std::unique_ptr<GpuDepthPass> pass(new GpuDepthPass());
+  pass->triangle_groups_ = MakeTriangleGroups(triangles, positions, kTriangleGroupSize);
   const std::string vertex_shader =
       std::string("#version 310 es\n") + kCameraGlsl + kVertexShaderBody;
   Expected<GlProgram> program =
@@ -82,7 +84,7 @@ Expected<std::unique_ptr<GpuDepthPass>> GpuDepthPass::Create(
   pass->vertex_array_ = MakeGlVertexArray();
   pass->indices_ = MakeGlBuffer();
   glBindVertexArray(pass->vertex_array_.id());
-  glBindBuffer(GL_ARRAY_BUFFER, positions);
+  glBindBuffer(GL_ARRAY_BUFFER, positions_buffer);
   glEnableVertexAttribArray(0);
   glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 3 * sizeof(float), nullptr);
   glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, pass->indices_.id());
@@ -126,7 +128,8 @@ Status GpuDepthPass::Resize(int width, int height) {
   return CheckGlError("occlusion depth texture");
 }
 
-Status GpuDepthPass::Render(const CameraUniforms& camera, int width, int height) {
+Status GpuDepthPass::Render(const CameraUniforms& camera, const FrustumCuller& culler, int width,
+                            int height) {
   GLint max_size = 0;
   glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_size);
   if (width > max_size || height > max_size) {
@@ -147,11 +150,25 @@ Status GpuDepthPass::Render(const CameraUniforms& camera, int width, int height)
   glDepthMask(GL_TRUE);
   glClearDepthf(1.f);
   glClear(GL_DEPTH_BUFFER_BIT);
+  last_triangles_drawn_ = 0;
   if (num_indices_ > 0) {
     glUseProgram(program_.id());
     camera_uniforms_.Set(camera);
     glBindVertexArray(vertex_array_.id());
-    glDrawElements(GL_TRIANGLES, num_indices_, GL_UNSIGNED_INT, nullptr);
+    // One draw per run of consecutive groups in view.
+    size_t g = 0;
+    while (g < triangle_groups_.size()) {
+      if (!culler.MayBeVisible(triangle_groups_[g])) {
+        ++g;
+        continue;
+      }
+      const size_t first = triangle_groups_[g].begin;
+      while (g < triangle_groups_.size() && culler.MayBeVisible(triangle_groups_[g])) ++g;
+      const size_t count = triangle_groups_[g - 1].end - first;
+      glDrawElements(GL_TRIANGLES, static_cast<GLsizei>(3 * count), GL_UNSIGNED_INT,
+                     reinterpret_cast<const void*>(3 * first * sizeof(uint32_t)));
+      last_triangles_drawn_ += count;
+    }
   }
   return CheckGlError("occlusion depth pass");
 }

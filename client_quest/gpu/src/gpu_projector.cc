@@ -184,11 +184,15 @@ Status GpuProjector::Init(const Scene& scene, const ProjectorOptions& options) {
   if (Status s = CheckGlError("uploading the scene"); !s) return s;
   if (options.occlusion) {
     Expected<std::unique_ptr<GpuDepthPass>> pass =
-        GpuDepthPass::Create(positions_.id(), scene.triangles);
+        GpuDepthPass::Create(positions_.id(), scene.positions, scene.triangles);
     if (!pass) return pass.status();
     depth_pass_ = std::move(*pass);
   }
   return Status::Ok();
+}
+
+size_t GpuProjector::last_triangles_drawn() const {
+  return depth_pass_ ? depth_pass_->last_triangles_drawn() : 0;
 }
 
 GpuProjector::~GpuProjector() {
@@ -218,17 +222,17 @@ Status GpuProjector::Dispatch(const Pose3& world_from_camera, const Camera& came
   }
   if (Status s = context_->MakeCurrent(); !s) return s;
   const CameraUniforms uniforms = MakeCameraUniforms(world_from_camera, camera);
+  const FrustumCuller culler(world_from_camera, camera, kCullMarginPx);
   if (depth_pass_) {
     const int width = OcclusionBufferSize(camera.width, options_.occlusion_resolution_scale);
     const int height = OcclusionBufferSize(camera.height, options_.occlusion_resolution_scale);
-    if (Status s = depth_pass_->Render(uniforms, width, height); !s) return s;
+    if (Status s = depth_pass_->Render(uniforms, culler, width, height); !s) return s;
   }
   Slot& slot = slots_[next_slot_];
   const GLuint zero = 0;
   glBindBuffer(GL_SHADER_STORAGE_BUFFER, slot.counter.id());
   glBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, sizeof(zero), &zero);
   // The groups whose box may be in view; only their vertices are dispatched.
-  const FrustumCuller culler(world_from_camera, camera, kCullMarginPx);
   visible_groups_.clear();
   last_vertices_considered_ = 0;
   for (size_t g = 0; g < vertex_groups_.size(); ++g) {

@@ -85,6 +85,23 @@ std::vector<CullGroup> MakeTriangleGroups(const std::vector<uint32_t>& triangles
   return groups;
 }
 
+std::vector<CullGroup> MakeTriangleGroups(const std::vector<uint32_t>& triangles,
+                                          std::span<const Eigen::Vector3f> positions,
+                                          size_t group_size) {
+  std::vector<CullGroup> groups;
+  const size_t n = triangles.size() / 3;
+  for (size_t begin = 0; begin < n; begin += group_size) {
+    const size_t end = std::min(n, begin + group_size);
+    CullGroup group = BoxOf(static_cast<uint32_t>(begin), static_cast<uint32_t>(end));
+    for (size_t i = 3 * begin; i < 3 * end; ++i) {
+      const Eigen::Vector3f& p = positions[triangles[i]];
+      Extend(&group, p.x(), p.y(), p.z());
+    }
+    groups.push_back(group);
+  }
+  return groups;
+}
+
 FrustumCuller::FrustumCuller(const Pose3& world_from_camera, const Camera& camera, double margin_px)
     : camera_(camera),
       camera_from_world_(world_from_camera.RotationMatrix().transpose()),

@@ -2,6 +2,7 @@
 #include <GLES3/gl31.h>
 #include <gtest/gtest.h>
 
+#include <iostream>
 #include <set>
 
 #include "gpu_test_util.h"
@@ -219,6 +220,75 @@ TEST_F(GpuOcclusionTest, AgreesWithCpuOnDefaultScene) {
   // triangle edges). The bound allows 9x that (0.03 %, about 18 ids); a wrong depth rule or
   // bias would move thousands.
   EXPECT_GT(agreement, 0.9997);
+}
+
+// A 6 x 6 district of triangulated patches 4 m apart, each a 64 x 64 grid of 1 m with a
+// zigzag height (0, 0.3, ... 1.2 m along the diagonals), so grazing views hide much of each
+// patch behind its own ridges. Views along a row draw only the triangle groups in view, and
+// the features agree with the CPU projector's (which rasterises every triangle group that
+// may be seen, by the same rule) as closely as on the default scene; a view of the sky draws
+// nothing.
+TEST_F(GpuOcclusionTest, CulledTriangleGroupsChangeNothing) {
+  Scene scene;
+  for (int px = 0; px < 6; ++px) {
+    for (int py = 0; py < 6; ++py) {
+      const auto first = static_cast<uint32_t>(scene.positions.size());
+      for (int i = 0; i < 64; ++i) {
+        for (int j = 0; j < 64; ++j) {
+          scene.positions.emplace_back(4.0f * px + i / 63.0f, 4.0f * py + j / 63.0f,
+                                       0.3f * static_cast<float>((i + j) % 5));
+        }
+      }
+      for (uint32_t i = 0; i + 1 < 64; ++i) {
+        for (uint32_t j = 0; j + 1 < 64; ++j) {
+          const uint32_t a = first + 64 * i + j, b = a + 1, c = a + 64, d = c + 1;
+          scene.triangles.insert(scene.triangles.end(), {a, b, d, a, d, c});
+        }
+      }
+    }
+  }
+  ProjectorOptions options;
+  options.occlusion = true;
+  auto gpu = GpuProjector::Create(scene, options, context_);
+  ASSERT_TRUE(gpu) << gpu.error();
+  auto cpu = CpuProjector::Create(scene, options);
+  ASSERT_TRUE(cpu) << cpu.error();
+  auto plain = CpuProjector::Create(scene, ProjectorOptions{});
+  ASSERT_TRUE(plain) << plain.error();
+  const Camera camera = Camera::FromHorizontalFov(640, 480, 60.0, 0.05, 10.0);
+  const size_t num_triangles = scene.num_triangles();
+  // Along the first row; up the gap between two columns; down onto one patch.
+  const std::vector<Pose3> poses = {
+      LookAt({-3, 0.5, 1.5}, {21, 0.5, 0}), LookAt({10.5, -2, 1.5}, {10.5, 20, 0.5}),
+      LookAt({12.5, 12.5, 3}, {12.5, 12.5, 0}, Eigen::Vector3d::UnitY())};
+  size_t total_union = 0, total_common = 0, total_hidden = 0;
+  std::vector<ProjectedVertex> gpu_out, cpu_out, plain_out;
+  for (size_t k = 0; k < poses.size(); ++k) {
+    SCOPED_TRACE("pose " + std::to_string(k));
+    ASSERT_TRUE((*gpu)->Project(poses[k], camera, &gpu_out));
+    ASSERT_TRUE((*cpu)->Project(poses[k], camera, &cpu_out));
+    ASSERT_TRUE((*plain)->Project(poses[k], camera, &plain_out));
+    EXPECT_GT((*gpu)->last_triangles_drawn(), 0u);
+    EXPECT_LT((*gpu)->last_triangles_drawn(), num_triangles / 2);
+    const std::set<VertexId> g = Ids(gpu_out), c = Ids(cpu_out);
+    std::set<VertexId> all = g;
+    all.insert(c.begin(), c.end());
+    for (VertexId id : g) total_common += c.count(id);
+    total_union += all.size();
+    total_hidden += plain_out.size() - c.size();
+  }
+  ASSERT_GT(total_union, 0u);
+  EXPECT_GT(total_hidden, total_union / 5) << "the ridges should hide many vertices";
+  const double agreement = static_cast<double>(total_common) / static_cast<double>(total_union);
+  std::cout << "GPU/CPU occlusion agreement on the district: " << 100.0 * agreement << "% of "
+            << total_union << " ids, " << total_hidden << " hidden by the CPU rule\n";
+  // Measured on Mesa llvmpipe: 99.967 % (3 of 9164 ids differ, rasterisation ties at triangle
+  // edges; the same 3 with every triangle group drawn). The bound allows 3x that; a group
+  // culled wrongly would let hundreds of the 15105 hidden vertices through.
+  EXPECT_GT(agreement, 0.999);
+  ASSERT_TRUE((*gpu)->Project(LookAt({10, 10, 5}, {10, 10, 50}), camera, &gpu_out));
+  EXPECT_EQ((*gpu)->last_triangles_drawn(), 0u);
+  EXPECT_TRUE(gpu_out.empty());
 }
 
 }  // namespace

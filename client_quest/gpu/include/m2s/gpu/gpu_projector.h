@@ -120,6 +120,9 @@ class GpuProjector : public Projector {
   size_t num_vertices() const { return num_vertices_; }
   // Vertices in the groups the last Dispatch() sent to the shader (the rest were culled).
   size_t last_vertices_considered() const { return last_vertices_considered_; }
+  // With occlusion: triangles the last Dispatch() drew into the depth buffer (the rest were
+  // culled); 0 without.
+  size_t last_triangles_drawn() const;
 
  private:
   struct Slot {

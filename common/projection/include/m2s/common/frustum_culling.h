@@ -43,6 +43,9 @@ std::vector<CullGroup> MakeVertexGroups(std::span<const Eigen::Vector3f> positio
 // Groups of group_size consecutive triangles, boxes over their corners.
 std::vector<CullGroup> MakeTriangleGroups(const std::vector<uint32_t>& triangles, const float* x,
                                           const float* y, const float* z, size_t group_size);
+std::vector<CullGroup> MakeTriangleGroups(const std::vector<uint32_t>& triangles,
+                                          std::span<const Eigen::Vector3f> positions,
+                                          size_t group_size);
 
 // Where a group's box can appear in a depth buffer: the buffer pixels [x0, x1] x [y0, y1]
 // (clipped to the buffer, widened by a pixel on each side beyond what pixel-centre sampling
