@@ -72,6 +72,22 @@ std::set<VertexId> Ids(const std::vector<ProjectedVertex>& features) {
   return ids;
 }
 
+// GPU against CPU occlusion over several views: the ids both keep, out of those either keeps,
+// and the vertices the CPU rule hides (against projecting without occlusion).
+struct Agreement {
+  size_t union_ids = 0, common = 0, hidden = 0;
+  void Add(const std::vector<ProjectedVertex>& gpu, const std::vector<ProjectedVertex>& cpu,
+           const std::vector<ProjectedVertex>& plain) {
+    const std::set<VertexId> g = Ids(gpu), c = Ids(cpu);
+    std::set<VertexId> all = g;
+    all.insert(c.begin(), c.end());
+    for (VertexId id : g) common += c.count(id);
+    union_ids += all.size();
+    hidden += plain.size() - c.size();
+  }
+  double fraction() const { return static_cast<double>(common) / static_cast<double>(union_ids); }
+};
+
 class GpuOcclusionTest : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -192,7 +208,7 @@ TEST_F(GpuOcclusionTest, AgreesWithCpuOnDefaultScene) {
   auto plain = CpuProjector::Create(scene, ProjectorOptions{});
   ASSERT_TRUE(plain) << plain.error();
   const Camera camera = Camera::FromHorizontalFov(640, 480, 90.0);
-  size_t total_union = 0, total_common = 0, total_hidden = 0;
+  Agreement agreement;
   std::vector<ProjectedVertex> gpu_out, cpu_out, plain_out;
   for (int k = 0; k < 8; ++k) {
     const double a = k * M_PI / 4;
@@ -202,24 +218,18 @@ TEST_F(GpuOcclusionTest, AgreesWithCpuOnDefaultScene) {
     ASSERT_TRUE((*gpu)->Project(pose, camera, &gpu_out));
     ASSERT_TRUE((*cpu)->Project(pose, camera, &cpu_out));
     ASSERT_TRUE((*plain)->Project(pose, camera, &plain_out));
-    const std::set<VertexId> g = Ids(gpu_out), c = Ids(cpu_out);
-    std::set<VertexId> all = g;
-    all.insert(c.begin(), c.end());
-    size_t common = 0;
-    for (VertexId id : g) common += c.count(id);
-    total_union += all.size();
-    total_common += common;
-    total_hidden += plain_out.size() - c.size();
+    agreement.Add(gpu_out, cpu_out, plain_out);
   }
-  ASSERT_GT(total_union, 0u);
-  EXPECT_GT(total_hidden, total_union / 20) << "the default scene should have occluded vertices";
-  const double agreement = static_cast<double>(total_common) / static_cast<double>(total_union);
-  std::cout << "GPU/CPU occlusion agreement on the default scene: " << 100.0 * agreement << "% of "
-            << total_union << " ids, " << total_hidden << " hidden by the CPU rule\n";
+  ASSERT_GT(agreement.union_ids, 0u);
+  EXPECT_GT(agreement.hidden, agreement.union_ids / 20)
+      << "the default scene should have occluded vertices";
+  std::cout << "GPU/CPU occlusion agreement on the default scene: " << 100.0 * agreement.fraction()
+            << "% of " << agreement.union_ids << " ids, " << agreement.hidden
+            << " hidden by the CPU rule\n";
   // Measured on Mesa llvmpipe: 99.9966 % (2 of 58799 ids differ, rasterisation ties at
   // triangle edges). The bound allows 9x that (0.03 %, about 18 ids); a wrong depth rule or
   // bias would move thousands.
-  EXPECT_GT(agreement, 0.9997);
+  EXPECT_GT(agreement.fraction(), 0.9997);
 }
 
 // A 6 x 6 district of triangulated patches 4 m apart, each a 64 x 64 grid of 1 m with a
@@ -261,7 +271,7 @@ TEST_F(GpuOcclusionTest, CulledTriangleGroupsChangeNothing) {
   const std::vector<Pose3> poses = {
       LookAt({-3, 0.5, 1.5}, {21, 0.5, 0}), LookAt({10.5, -2, 1.5}, {10.5, 20, 0.5}),
       LookAt({12.5, 12.5, 3}, {12.5, 12.5, 0}, Eigen::Vector3d::UnitY())};
-  size_t total_union = 0, total_common = 0, total_hidden = 0;
+  Agreement agreement;
   std::vector<ProjectedVertex> gpu_out, cpu_out, plain_out;
   for (size_t k = 0; k < poses.size(); ++k) {
     SCOPED_TRACE("pose " + std::to_string(k));
@@ -270,22 +280,17 @@ TEST_F(GpuOcclusionTest, CulledTriangleGroupsChangeNothing) {
     ASSERT_TRUE((*plain)->Project(poses[k], camera, &plain_out));
     EXPECT_GT((*gpu)->last_triangles_drawn(), 0u);
     EXPECT_LT((*gpu)->last_triangles_drawn(), num_triangles / 2);
-    const std::set<VertexId> g = Ids(gpu_out), c = Ids(cpu_out);
-    std::set<VertexId> all = g;
-    all.insert(c.begin(), c.end());
-    for (VertexId id : g) total_common += c.count(id);
-    total_union += all.size();
-    total_hidden += plain_out.size() - c.size();
+    agreement.Add(gpu_out, cpu_out, plain_out);
   }
-  ASSERT_GT(total_union, 0u);
-  EXPECT_GT(total_hidden, total_union / 5) << "the ridges should hide many vertices";
-  const double agreement = static_cast<double>(total_common) / static_cast<double>(total_union);
-  std::cout << "GPU/CPU occlusion agreement on the district: " << 100.0 * agreement << "% of "
-            << total_union << " ids, " << total_hidden << " hidden by the CPU rule\n";
+  ASSERT_GT(agreement.union_ids, 0u);
+  EXPECT_GT(agreement.hidden, agreement.union_ids / 5) << "the ridges should hide many vertices";
+  std::cout << "GPU/CPU occlusion agreement on the district: " << 100.0 * agreement.fraction()
+            << "% of " << agreement.union_ids << " ids, " << agreement.hidden
+            << " hidden by the CPU rule\n";
   // Measured on Mesa llvmpipe: 99.967 % (3 of 9164 ids differ, rasterisation ties at triangle
   // edges; the same 3 with every triangle group drawn). The bound allows 3x that; a group
   // culled wrongly would let hundreds of the 15105 hidden vertices through.
-  EXPECT_GT(agreement, 0.999);
+  EXPECT_GT(agreement.fraction(), 0.999);
   ASSERT_TRUE((*gpu)->Project(LookAt({10, 10, 5}, {10, 10, 50}), camera, &gpu_out));
   EXPECT_EQ((*gpu)->last_triangles_drawn(), 0u);
   EXPECT_TRUE(gpu_out.empty());
