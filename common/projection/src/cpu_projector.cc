@@ -26,14 +26,19 @@ Status ProjectorOptions::Check() const {
   return Status::Ok();
 }
 
-void CpuProjector::Impl::Cull(const Pose3& world_from_camera, int pool_size) {
+void CpuProjector::Impl::Cull(const Pose3& world_from_camera, int pool_size, bool balanced) {
   const internal::FrustumCuller culler(world_from_camera, camera, kCullMarginPx);
   visible_groups.clear();
+  cell_boxes.clear();
   frame_vertices = 0;
   for (uint32_t g = 0; g < vertex_groups.size(); ++g) {
     if (!culler.MayBeVisible(vertex_groups[g])) continue;
     visible_groups.push_back(g);
     frame_vertices += vertex_groups[g].end - vertex_groups[g].begin;
+    if (balanced) {
+      CellBoxOf(culler.Footprint(vertex_groups[g], camera.width, camera.height),
+                &cell_boxes.emplace_back());
+    }
   }
   active_workers = static_cast<int>(std::clamp<size_t>(frame_vertices / kMinVerticesPerWorker, 1,
                                                        static_cast<size_t>(pool_size)));
@@ -230,21 +235,13 @@ void CpuProjector::Impl::TestChunk(int worker) {
 
 size_t CpuProjector::Impl::TestGroup(size_t begin, size_t end, ProjectedVertex* out,
                                      size_t count) const {
-  const float scale_x = static_cast<float>(depth_buffer.width()) / static_cast<float>(camera.width);
-  const float scale_y =
-      static_cast<float>(depth_buffer.height()) / static_cast<float>(camera.height);
-  const float relative = 1.f + static_cast<float>(options.occlusion_depth_bias_relative);
-  const float absolute = static_cast<float>(options.occlusion_depth_bias_m);
-  const int max_x = depth_buffer.width() - 1, max_y = depth_buffer.height() - 1;
   // Branch-free inside (along the ids of a dense scan the test passes and fails at random):
   // each vertex is written at out[count] and counted only when in view and in front; `out`
   // has room for every vertex of the group. Eight vertices out of view are skipped at a time.
   auto test = [&](size_t i) {
     const bool in_view = all_visible[i] != 0;
     const float u = in_view ? all_u[i] : 0.f, v = in_view ? all_v[i] : 0.f;
-    const int bx = std::clamp(static_cast<int>(std::floor(u * scale_x)), 0, max_x);
-    const int by = std::clamp(static_cast<int>(std::floor(v * scale_y)), 0, max_y);
-    const bool in_front = all_depth[i] <= dilated.row(by)[bx] * relative + absolute;
+    const bool in_front = InFront(u, v, all_depth[i]);
     out[count] = ProjectedVertex{static_cast<VertexId>(i), all_u[i], all_v[i], all_depth[i]};
     count += static_cast<size_t>(in_view & in_front);
   };
@@ -259,12 +256,40 @@ size_t CpuProjector::Impl::TestGroup(size_t begin, size_t end, ProjectedVertex* 
   return count;
 }
 
+void CpuProjector::Impl::Prepare(const Pose3& world_from_camera, const Camera& frame_camera,
+                                 bool balanced) {
+  constants = internal::MakeFrameConstants(world_from_camera, frame_camera);
+  camera = frame_camera;
+  camera_from_world = world_from_camera.RotationMatrix().transpose();
+  camera_centre = world_from_camera.translation();
+  const int pool_size = pool->size();
+  if (options.occlusion) {
+    const double s = options.occlusion_resolution_scale;
+    const int bw = std::max(1, static_cast<int>(std::lround(camera.width * s)));
+    const int bh = std::max(1, static_cast<int>(std::lround(camera.height * s)));
+    depth_buffer.Resize(bw, bh);
+    cell_scale_x = static_cast<float>(static_cast<double>(bw) / camera.width);
+    cell_scale_y = static_cast<float>(static_cast<double>(bh) / camera.height);
+    dilated.Resize(bw, bh);
+  }
+  Cull(world_from_camera, pool_size, balanced);
+  if (!options.occlusion) return;
+  auto transform = [this](int worker) {
+    if (worker < active_workers) TransformChunk(worker);
+  };
+  pool->Run(transform);
+  auto rasterize = [this, pool_size](int worker) { RasterizeBand(worker, pool_size); };
+  pool->Run(rasterize);
+  auto dilate = [this, pool_size](int worker) { DilateBand(worker, pool_size); };
+  pool->Run(dilate);
+}
+
 CpuProjector::CpuProjector(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 CpuProjector::~CpuProjector() = default;
 
 size_t CpuProjector::num_vertices() const { return impl_->num_vertices; }
 size_t CpuProjector::last_vertices_tested() const {
-  if (!impl_->options.occlusion) return impl_->frame_vertices;
+  if (!impl_->options.occlusion && !impl_->balanced) return impl_->frame_vertices;
   size_t tested = 0;
   for (int w = 0; w < impl_->active_workers; ++w) tested += impl_->scratch[w].tested;
   return tested;
@@ -350,36 +375,14 @@ Status CpuProjector::Project(const Pose3& world_from_camera, const Camera& camer
   if (!world_from_camera.AllFinite()) return Status::Error("camera pose is not finite");
 
   Impl& m = *impl_;
-  m.constants = internal::MakeFrameConstants(world_from_camera, camera);
-  m.camera = camera;
-  m.camera_from_world = world_from_camera.RotationMatrix().transpose();
-  m.camera_centre = world_from_camera.translation();
-  const int pool_size = m.pool->size();
-  if (m.options.occlusion) {
-    const double s = m.options.occlusion_resolution_scale;
-    const int bw = std::max(1, static_cast<int>(std::lround(camera.width * s)));
-    const int bh = std::max(1, static_cast<int>(std::lround(camera.height * s)));
-    m.depth_buffer.Resize(bw, bh);
-    m.cell_scale_x = static_cast<float>(static_cast<double>(bw) / camera.width);
-    m.cell_scale_y = static_cast<float>(static_cast<double>(bh) / camera.height);
-    m.dilated.Resize(bw, bh);
-  }
-  m.Cull(world_from_camera, pool_size);
-
+  m.balanced = false;
+  m.Prepare(world_from_camera, camera, /*balanced=*/false);
   if (!m.options.occlusion) {
     auto project = [&m](int worker) {
       if (worker < m.active_workers) m.ProjectChunk(worker);
     };
     m.pool->Run(project);
   } else {
-    auto transform = [&m](int worker) {
-      if (worker < m.active_workers) m.TransformChunk(worker);
-    };
-    m.pool->Run(transform);
-    auto rasterize = [&m, pool_size](int worker) { m.RasterizeBand(worker, pool_size); };
-    m.pool->Run(rasterize);
-    auto dilate = [&m, pool_size](int worker) { m.DilateBand(worker, pool_size); };
-    m.pool->Run(dilate);
     auto test = [&m](int worker) {
       if (worker < m.active_workers) m.TestChunk(worker);
     };

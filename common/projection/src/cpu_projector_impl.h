@@ -2,6 +2,7 @@
 #pragma once
 
 #include <algorithm>
+#include <cmath>
 #include <limits>
 #include <memory>
 #include <utility>
@@ -9,6 +10,7 @@
 
 #include "cpu_projector_internal.h"
 #include "m2s/common/cpu_projector.h"
+#include "m2s/common/feature_rank.h"
 
 namespace m2s {
 
@@ -33,6 +35,26 @@ inline constexpr double kCullMarginPx = 2.0;
 inline constexpr int kMaxThreads = 256;
 
 struct CpuProjector::Impl {
+  // Balanced projection (cpu_projector_balanced.cc): a visible vertex with its rank, and per
+  // worker, for each grid cell, a max-heap of the lowest-ranked ones and the number seen.
+  struct RankedVertex {
+    uint64_t rank = 0;
+    ProjectedVertex vertex;
+    bool operator<(const RankedVertex& o) const { return rank < o.rank; }
+  };
+  struct CellBox {
+    int x0 = 0, x1 = -1, y0 = 0, y1 = -1;  // grid cells, inclusive
+  };
+  struct CellHeaps {
+    int cols = 1;
+    std::vector<RankedVertex> entries;  // cell c's heap at [c * capacity, + filled[c])
+    std::vector<uint32_t> filled, count;
+    size_t visited = 0;
+    // The largest rank in the heaps of the box's cells, or UINT64_MAX when one is not full.
+    uint64_t Bound(const CellBox& box, uint32_t capacity) const;
+    void Add(size_t c, uint32_t capacity, uint64_t rank, const ProjectedVertex& vertex);
+  };
+
   struct WorkerScratch {
     AlignedVector<float> u, v, depth;
     AlignedVector<uint8_t> visible;
@@ -40,6 +62,9 @@ struct CpuProjector::Impl {
     std::vector<ProjectedVertex> out;  // grows to the chunk size + 1, never shrinks
     size_t count = 0;
     size_t tested = 0;  // vertices of the groups this worker depth-tested in the last frame
+    CellHeaps heaps;
+    AlignedVector<float> group_u, group_v, group_depth;  // one group, without occlusion
+    AlignedVector<uint8_t> group_visible;
   };
 
   ProjectorOptions options;
@@ -77,6 +102,16 @@ struct CpuProjector::Impl {
   std::vector<std::pair<double, uint32_t>> triangle_order;
   std::vector<size_t> visible_split, transform_split;
   std::vector<uint8_t> group_needed;
+  // Balanced projection: the grid, the heaps' capacity, the grid cells each visible vertex
+  // group's box covers (as visible_groups), and per vertex group the offsets of its vertices
+  // in the rank order of their ids (rank_offsets[begin .. end), made for rank_order_size[g]
+  // vertices).
+  FeatureGrid grid;
+  bool balanced = false;  // the last frame was ProjectBalanced's
+  uint32_t heap_capacity = 0;
+  std::vector<CellBox> cell_boxes;
+  std::vector<uint16_t> rank_offsets;
+  std::vector<uint32_t> rank_order_size;
   size_t frame_vertices = 0;        // vertices in the visible groups
   size_t transformed_vertices = 0;  // with occlusion: in the groups transformed
 
@@ -99,8 +134,35 @@ struct CpuProjector::Impl {
   }
   // Re-boxes the vertex groups holding `ids` (sorted) and the groups of ids [first, end).
   void ReboxVertices(const std::vector<VertexId>& ids, VertexId first, VertexId end);
-  // Fills the per-frame lists; returns the number of workers to wake.
-  void Cull(const Pose3& world_from_camera, int pool_size);
+  // Fills the per-frame lists (and, when balanced, cell_boxes).
+  void Cull(const Pose3& world_from_camera, int pool_size, bool balanced);
+  // Everything before the vertex test: frame constants, culling and, with occlusion, the
+  // transform, the depth buffer and its 3x3 maximum.
+  void Prepare(const Pose3& world_from_camera, const Camera& frame_camera, bool balanced);
+  // The vertex test's depth rule (cpu_projector.h, occlusion 3) for an in-view vertex.
+  bool InFront(float u, float v, float depth) const {
+    const float scale_x =
+        static_cast<float>(depth_buffer.width()) / static_cast<float>(camera.width);
+    const float scale_y =
+        static_cast<float>(depth_buffer.height()) / static_cast<float>(camera.height);
+    const float relative = 1.f + static_cast<float>(options.occlusion_depth_bias_relative);
+    const float absolute = static_cast<float>(options.occlusion_depth_bias_m);
+    const int bx =
+        std::clamp(static_cast<int>(std::floor(u * scale_x)), 0, depth_buffer.width() - 1);
+    const int by =
+        std::clamp(static_cast<int>(std::floor(v * scale_y)), 0, depth_buffer.height() - 1);
+    return depth <= dilated.row(by)[bx] * relative + absolute;
+  }
+  void PrepareRankOrder();
+  void CellBoxOf(const internal::ScreenBox& box, CellBox* cells) const;
+  void BalancedChunk(int worker);
+  // Visits visible group k's vertices in rank order (u, v, depth, visible indexed by offset
+  // in the group) until none of the rest can enter a heap.
+  void VisitByRank(size_t k, const float* u, const float* v, const float* depth,
+                   const uint8_t* visible, CellHeaps& h);
+  // The balanced selection from the workers' heaps, sorted by id; false when the heaps are
+  // too small for it (more whole levels than their capacity).
+  bool SelectFromHeaps(int budget, std::vector<ProjectedVertex>* out);
   // NaN coordinates: the kernel never finds a retired vertex visible, boxes leave it out.
   void Retire(VertexId id) { x[id] = y[id] = z[id] = std::numeric_limits<float>::quiet_NaN(); }
   ProjectedVertex* ReserveOut(WorkerScratch& s, size_t n) {

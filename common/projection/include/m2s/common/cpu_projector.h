@@ -87,6 +87,14 @@ class CpuProjector final : public Projector {
   // Fails (with `out` cleared) on a bad camera, a non-finite pose or a null `out`.
   Status Project(const Pose3& world_from_camera, const Camera& camera,
                  std::vector<ProjectedVertex>* out) override;
+  // Project()'s balanced selection (projector.h), found without testing every visible
+  // vertex: each vertex group is visited in the rank order of its ids (the order is made once
+  // per group) and left as soon as every grid cell its box covers holds enough visible
+  // vertices of lower rank that none of the rest can be kept (cpu_projector_balanced.cc).
+  // The same vertices and floats as the default, in id order.
+  Status ProjectBalanced(const Pose3& world_from_camera, const Camera& camera,
+                         const FeatureGrid& grid, int budget,
+                         std::vector<ProjectedVertex>* out) override;
   std::string_view name() const override { return "cpu"; }
 
   size_t num_vertices() const;

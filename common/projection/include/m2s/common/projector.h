@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "m2s/common/camera.h"
+#include "m2s/common/feature_rank.h"
 #include "m2s/common/geometry.h"
 #include "m2s/common/status.h"
 #include "m2s/common/types.h"
@@ -53,7 +54,17 @@ class Projector {
   // Fills `out` (cleared first; its capacity is reused, no per-frame allocation in steady state).
   virtual Status Project(const Pose3& world_from_camera, const Camera& camera,
                          std::vector<ProjectedVertex>* out) = 0;
+  // The balanced selection (feature_rank.h: SelectBalanced on `grid`, at most `budget`) of the
+  // in-image vertices Project() returns, in their order; everything in the image when
+  // budget <= 0. This default projects everything and selects; a projector may find the same
+  // vertices with less work (CpuProjector).
+  virtual Status ProjectBalanced(const Pose3& world_from_camera, const Camera& camera,
+                                 const FeatureGrid& grid, int budget,
+                                 std::vector<ProjectedVertex>* out);
   virtual std::string_view name() const = 0;
+
+ private:
+  BalancedSelector selector_;  // the default ProjectBalanced's buffers
 };
 
 }  // namespace m2s

@@ -1,0 +1,239 @@
+// CpuProjector::ProjectBalanced: the balanced selection of a frame without testing every
+// visible vertex.
+//
+// SelectBalanced keeps, per grid cell, the `levels` lowest-ranked features (and the next one
+// of some cells). Here every worker keeps, per cell, a max-heap of the `capacity` lowest-ranked
+// visible vertices it found and the number it found. A vertex group is visited in the rank
+// order of its ids, so the heaps soon hold low ranks: an in-view vertex whose cell's heap is
+// full with lower ranks is passed over before its depth test, and once every cell of the
+// group's footprint holds such a heap, with ranks below the next vertex's, the rest of the
+// group is left. Neither skip can change a heap, and both happen only in full cells, so a cell
+// whose heap is not full has an exact count; a full one has at least `capacity` visible
+// vertices. That is all the selection needs when levels < capacity; otherwise the frame is
+// tested again with a larger capacity (a view whose features gather in a few cells).
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+
+#include "cpu_projector_impl.h"
+
+namespace m2s {
+namespace {
+
+constexpr uint64_t kNoBound = std::numeric_limits<uint64_t>::max();
+// Heaps' largest ranks are re-read after this many visited vertices (a stale bound only
+// visits a few vertices more).
+constexpr size_t kBoundPeriod = 32;
+
+}  // namespace
+
+void CpuProjector::Impl::PrepareRankOrder() {
+  if (rank_offsets.size() < num_vertices) rank_offsets.resize(num_vertices);
+  rank_order_size.resize(vertex_groups.size(), 0);
+  std::vector<std::pair<uint64_t, uint16_t>> ranked;
+  for (size_t g = 0; g < vertex_groups.size(); ++g) {
+    const uint32_t begin = static_cast<uint32_t>(g * kVertexGroupSize);
+    const uint32_t end = static_cast<uint32_t>(std::min(num_vertices, begin + kVertexGroupSize));
+    if (rank_order_size[g] == end - begin) continue;
+    ranked.clear();
+    for (uint32_t i = begin; i < end; ++i)
+      ranked.emplace_back(FeatureRank(i), static_cast<uint16_t>(i - begin));
+    std::sort(ranked.begin(), ranked.end());
+    for (size_t k = 0; k < ranked.size(); ++k) rank_offsets[begin + k] = ranked[k].second;
+    rank_order_size[g] = end - begin;
+  }
+}
+
+void CpuProjector::Impl::CellBoxOf(const internal::ScreenBox& box, CellBox* cells) const {
+  if (!box.bounded) {
+    *cells = {0, grid.cols - 1, 0, grid.rows - 1};
+    return;
+  }
+  // The footprint's pixels [x0, x1] x [y0, y1] hold every vertex of the group: u < x1 + 1.
+  auto index = [](double x, double step, int count) {
+    return std::clamp(static_cast<int>(std::floor(x / step)), 0, count - 1);
+  };
+  cells->x0 = index(box.x0, grid.cell_width, grid.cols);
+  cells->x1 = index(box.x1 + 1.0, grid.cell_width, grid.cols);
+  cells->y0 = index(box.y0, grid.cell_height, grid.rows);
+  cells->y1 = index(box.y1 + 1.0, grid.cell_height, grid.rows);
+}
+
+uint64_t CpuProjector::Impl::CellHeaps::Bound(const CellBox& box, uint32_t capacity) const {
+  uint64_t bound = 0;
+  for (int cy = box.y0; cy <= box.y1; ++cy) {
+    for (int cx = box.x0; cx <= box.x1; ++cx) {
+      const size_t c = static_cast<size_t>(cy) * static_cast<size_t>(cols) + cx;
+      if (filled[c] < capacity) return kNoBound;
+      bound = std::max(bound, entries[c * capacity].rank);
+    }
+  }
+  return bound;
+}
+
+void CpuProjector::Impl::CellHeaps::Add(size_t c, uint32_t capacity, uint64_t rank,
+                                        const ProjectedVertex& vertex) {
+  ++count[c];
+  RankedVertex* heap = entries.data() + c * capacity;
+  if (filled[c] < capacity) {
+    heap[filled[c]++] = {rank, vertex};
+    std::push_heap(heap, heap + filled[c]);
+  } else if (rank < heap[0].rank) {
+    std::pop_heap(heap, heap + capacity);
+    heap[capacity - 1] = {rank, vertex};
+    std::push_heap(heap, heap + capacity);
+  }
+}
+
+void CpuProjector::Impl::VisitByRank(size_t k, const float* u, const float* v, const float* depth,
+                                     const uint8_t* visible, CellHeaps& h) {
+  const internal::CullGroup& group = vertex_groups[visible_groups[k]];
+  const uint16_t* order = rank_offsets.data() + group.begin;
+  const CellBox& box = cell_boxes[k];
+  const size_t n = group.end - group.begin;
+  uint64_t bound = kNoBound;
+  for (size_t j = 0; j < n; ++j) {
+    if (j % kBoundPeriod == 0) bound = h.Bound(box, heap_capacity);
+    const uint32_t offset = order[j];
+    const auto id = static_cast<VertexId>(group.begin + offset);
+    const uint64_t rank = FeatureRank(id);
+    if (rank > bound) break;  // ranks ascend: no later vertex can enter a heap of the box
+    if (!visible[offset]) continue;
+    const auto c = static_cast<size_t>(grid.CellOf(u[offset], v[offset]));
+    // A full heap it cannot enter: the cell's count is already capped, nothing to record.
+    if (h.filled[c] == heap_capacity && rank > h.entries[c * heap_capacity].rank) continue;
+    ++h.visited;
+    if (options.occlusion && !InFront(u[offset], v[offset], depth[offset])) continue;
+    h.Add(c, heap_capacity, rank, ProjectedVertex{id, u[offset], v[offset], depth[offset]});
+  }
+}
+
+void CpuProjector::Impl::BalancedChunk(int worker) {
+  WorkerScratch& s = scratch[worker];
+  CellHeaps& h = s.heaps;
+  const auto cells = static_cast<size_t>(grid.num_cells());
+  h.cols = grid.cols;
+  h.entries.resize(cells * heap_capacity);
+  h.filled.assign(cells, 0);
+  h.count.assign(cells, 0);
+  h.visited = 0;
+  s.tested = 0;
+  const float relative = 1.f + static_cast<float>(options.occlusion_depth_bias_relative);
+  const float absolute = static_cast<float>(options.occlusion_depth_bias_m);
+  for (size_t k = visible_split[worker]; k < visible_split[worker + 1]; ++k) {
+    const internal::CullGroup& group = vertex_groups[visible_groups[k]];
+    const size_t begin = group.begin, n = group.end - group.begin;
+    if (options.occlusion) {
+      const internal::ScreenBox& box = vertex_footprints[k];
+      if (box.bounded &&
+          (box.empty() || dilated.AllNearerThan(box.x0, box.x1, box.y0, box.y1, relative, absolute,
+                                                static_cast<float>(box.min_depth)))) {
+        continue;
+      }
+      const size_t before = h.visited;
+      VisitByRank(k, all_u.data() + begin, all_v.data() + begin, all_depth.data() + begin,
+                  all_visible.data() + begin, h);
+      s.tested += h.visited - before;
+    } else {
+      if (s.group_u.size() < kVertexGroupSize) {
+        s.group_u.resize(kVertexGroupSize);
+        s.group_v.resize(kVertexGroupSize);
+        s.group_depth.resize(kVertexGroupSize);
+        s.group_visible.resize(kVertexGroupSize);
+      }
+      internal::TransformVertices(constants, x.data() + begin, y.data() + begin, z.data() + begin,
+                                  n, s.group_u.data(), s.group_v.data(), s.group_depth.data(),
+                                  s.group_visible.data());
+      const size_t before = h.visited;
+      VisitByRank(k, s.group_u.data(), s.group_v.data(), s.group_depth.data(),
+                  s.group_visible.data(), h);
+      s.tested += h.visited - before;
+    }
+  }
+}
+
+bool CpuProjector::Impl::SelectFromHeaps(int budget, std::vector<ProjectedVertex>* out) {
+  const auto cells = static_cast<size_t>(grid.num_cells());
+  // Per cell: the merged heap's lowest `capacity` entries, sorted by rank, and the count
+  // (capped at `capacity` where some worker may have left groups early).
+  std::vector<std::vector<RankedVertex>> lowest(cells);
+  std::vector<uint32_t> count(cells, 0);
+  bool all_exact = true;
+  size_t total = 0;
+  for (size_t c = 0; c < cells; ++c) {
+    size_t sum = 0;
+    bool capped = false;
+    for (int w = 0; w < active_workers; ++w) {
+      const CellHeaps& h = scratch[w].heaps;
+      const RankedVertex* heap = h.entries.data() + c * heap_capacity;
+      lowest[c].insert(lowest[c].end(), heap, heap + h.filled[c]);
+      sum += h.count[c];
+      capped = capped || h.filled[c] == heap_capacity;
+    }
+    std::sort(lowest[c].begin(), lowest[c].end());
+    if (lowest[c].size() > heap_capacity) lowest[c].resize(heap_capacity);
+    capped = capped || sum >= heap_capacity;
+    all_exact = all_exact && !capped;
+    count[c] = capped ? heap_capacity : static_cast<uint32_t>(sum);
+    total += count[c];
+  }
+  out->clear();
+  if (all_exact && total <= static_cast<size_t>(budget)) {  // SelectBalanced keeps everything
+    for (const auto& cell : lowest) {
+      for (const RankedVertex& r : cell) out->push_back(r.vertex);
+    }
+  } else {
+    // Whole levels: the largest L with sum over cells of min(count, L) <= budget; exact while
+    // L < capacity.
+    auto whole_levels_size = [&](uint32_t level) {
+      size_t size = 0;
+      for (const uint32_t k : count) size += std::min(k, level);
+      return size;
+    };
+    uint32_t levels = 0;
+    while (levels < heap_capacity && whole_levels_size(levels + 1) <= static_cast<size_t>(budget))
+      ++levels;
+    if (levels >= heap_capacity) return false;  // more levels than the heaps hold
+    std::vector<RankedVertex> candidates;
+    for (size_t c = 0; c < cells; ++c) {
+      for (uint32_t k = 0; k < levels && k < lowest[c].size(); ++k)
+        out->push_back(lowest[c][k].vertex);
+      if (count[c] > levels) candidates.push_back(lowest[c][levels]);
+    }
+    const size_t rest = static_cast<size_t>(budget) - out->size();
+    std::nth_element(candidates.begin(), candidates.begin() + static_cast<ptrdiff_t>(rest),
+                     candidates.end());
+    for (size_t k = 0; k < rest; ++k) out->push_back(candidates[k].vertex);
+  }
+  std::sort(out->begin(), out->end(),
+            [](const ProjectedVertex& a, const ProjectedVertex& b) { return a.id < b.id; });
+  return true;
+}
+
+Status CpuProjector::ProjectBalanced(const Pose3& world_from_camera, const Camera& camera,
+                                     const FeatureGrid& grid, int budget,
+                                     std::vector<ProjectedVertex>* out) {
+  if (budget <= 0) return Projector::ProjectBalanced(world_from_camera, camera, grid, budget, out);
+  if (out == nullptr) return Status::Error("CpuProjector::ProjectBalanced: null output");
+  out->clear();
+  if (Status s = camera.Check(); !s) return s;
+  if (!world_from_camera.AllFinite()) return Status::Error("camera pose is not finite");
+  Impl& m = *impl_;
+  m.grid = grid;
+  m.balanced = true;
+  m.PrepareRankOrder();
+  m.Prepare(world_from_camera, camera, /*balanced=*/true);
+  // Twice the cells' share of the budget: a view that fills half the image fits at once.
+  m.heap_capacity = static_cast<uint32_t>(std::max(4, 2 * budget / grid.num_cells() + 2));
+  for (;;) {
+    auto visit = [&m](int worker) {
+      if (worker < m.active_workers) m.BalancedChunk(worker);
+    };
+    m.pool->Run(visit);
+    if (m.SelectFromHeaps(budget, out)) return Status::Ok();
+    m.heap_capacity = std::min<uint32_t>(4 * m.heap_capacity, static_cast<uint32_t>(budget) + 1);
+  }
+}
+
+}  // namespace m2s
