@@ -22,9 +22,9 @@ namespace m2s {
 namespace {
 
 constexpr uint64_t kNoBound = std::numeric_limits<uint64_t>::max();
-// Heaps' largest ranks are re-read after this many visited vertices (a stale bound only
-// visits a few vertices more).
-constexpr size_t kBoundPeriod = 32;
+// The heaps' largest ranks over a group's box are read at its start and after 32, 64, 128,
+// ... of its vertices (a stale bound only visits more vertices, at most twice as many).
+constexpr size_t kFirstBoundCheck = 32;
 
 }  // namespace
 
@@ -92,9 +92,13 @@ void CpuProjector::Impl::VisitByRank(size_t k, const float* u, const float* v, c
   const uint16_t* order = rank_offsets.data() + group.begin;
   const CellBox& box = cell_boxes[k];
   const size_t n = group.end - group.begin;
-  uint64_t bound = kNoBound;
+  uint64_t bound = h.Bound(box, heap_capacity);
+  size_t next_check = kFirstBoundCheck;
   for (size_t j = 0; j < n; ++j) {
-    if (j % kBoundPeriod == 0) bound = h.Bound(box, heap_capacity);
+    if (j == next_check) {  // at doubling intervals: a box may cover every cell
+      bound = h.Bound(box, heap_capacity);
+      next_check *= 2;
+    }
     const uint32_t offset = order[j];
     const auto id = static_cast<VertexId>(group.begin + offset);
     const uint64_t rank = FeatureRank(id);

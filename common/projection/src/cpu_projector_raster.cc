@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <utility>
+#include <vector>
 
 #include "cpu_projector_internal.h"
 
@@ -88,9 +89,21 @@ float DepthBuffer::Max3x3(int x, int y) const {
 }
 
 void DepthBuffer::Dilate3x3(int row_begin, int row_end, DepthBuffer* out) const {
+  // Separable, Max3x3's value at every pixel (depths are positive, max is exact): the maximum
+  // over the rows y-1..y+1 per column, then over the columns x-1..x+1.
+  std::vector<float> columns(static_cast<size_t>(width_));
   for (int y = row_begin; y < row_end; ++y) {
+    const float* above = row(std::max(y - 1, 0));
+    const float* here = row(y);
+    const float* below = row(std::min(y + 1, height_ - 1));
+    for (int x = 0; x < width_; ++x)
+      columns[x] = std::max(std::max(above[x], here[x]), std::max(below[x], 0.f));
     float* dilated = out->row(y);
-    for (int x = 0; x < width_; ++x) dilated[x] = Max3x3(x, y);
+    const int last = width_ - 1;
+    for (int x = 0; x < width_; ++x) {
+      const float left = columns[std::max(x - 1, 0)], right = columns[std::min(x + 1, last)];
+      dilated[x] = std::max(std::max(left, columns[x]), right);
+    }
   }
 }
 
