@@ -134,33 +134,42 @@ void CpuProjector::Impl::RasterizeBand(int band, int num_bands) {
       }
     }
     const internal::CullGroup& group = triangle_groups[visible_triangle_groups[k]];
-    if (box.bounded && box.min_depth >= camera.near && box.max_depth <= camera.far) {
-      // Every corner lies between near and far: no clipping, no depth checks per triangle.
-      RasterizeGroupInFront(group, band, b);
-    } else {
-      for (size_t t = group.begin; t < group.end; ++t) RasterizeTriangleAt(t, b);
-    }
+    const bool in_front =
+        box.bounded && box.min_depth >= camera.near && box.max_depth <= camera.far;
+    RasterizeGroup(group, in_front, band, b);
   }
 }
 
-void CpuProjector::Impl::RasterizeGroupInFront(const internal::CullGroup& group, int band,
-                                               const Band& b) {
+void CpuProjector::Impl::RasterizeGroup(const internal::CullGroup& group, bool in_front, int band,
+                                        const Band& b) {
   AlignedVector<uint8_t>& keep = scratch[band].keep;
   const size_t n = group.end - group.begin;
   if (keep.size() < n) keep.resize(n);
   const uint32_t* first = &triangles[3 * size_t{group.begin}];
-  internal::MayCoverPixelCentres(first, n, all_cells.data(), keep.data());
+  if (in_front) {
+    internal::MayCoverPixelCentres(first, n, all_cells.data(), keep.data());
+  } else {
+    internal::MayCoverPixelCentresOrCrossNear(first, n, all_cells.data(), all_depth.data(), b.near,
+                                              keep.data());
+  }
+  auto draw = [&](size_t j) {
+    if (in_front) {
+      RasterizeInFront(first + 3 * j, b);
+    } else {
+      RasterizeTriangleAt(group.begin + j, b);
+    }
+  };
   size_t i = 0;
   for (; i + 8 <= n; i += 8) {  // most of a dense scan's triangles cover no pixel centre
     uint64_t word;
     std::memcpy(&word, keep.data() + i, sizeof(word));
     if (word == 0) continue;
     for (size_t j = i; j < i + 8; ++j) {
-      if (keep[j]) RasterizeInFront(first + 3 * j, b);
+      if (keep[j]) draw(j);
     }
   }
   for (; i < n; ++i) {
-    if (keep[i]) RasterizeInFront(first + 3 * i, b);
+    if (keep[i]) draw(i);
   }
 }
 
@@ -190,7 +199,9 @@ void CpuProjector::Impl::RasterizeTriangleAt(size_t t, const Band& band) {
   }
 }
 
-void CpuProjector::Impl::RasterizeInFront(const uint32_t* idx, const Band& band) {
+M2S_KERNEL_CLONES  // the box tests' rounding in SSE4.1 instructions where there are
+    void
+    CpuProjector::Impl::RasterizeInFront(const uint32_t* idx, const Band& band) {
   if (internal::CoversNoPixelCentre(all_cells[idx[0]], all_cells[idx[1]], all_cells[idx[2]]))
     return;
   // A triangle whose box holds no pixel centre of the band writes nothing: rejected before

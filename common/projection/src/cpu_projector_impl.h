@@ -184,9 +184,10 @@ struct CpuProjector::Impl {
   void RasterizeTriangleAt(size_t t, const Band& band);
   // A triangle whose corners are all at depth >= near.
   void RasterizeInFront(const uint32_t* idx, const Band& band);
-  // The triangles of `group` (all corners between near and far) that may cover a pixel centre
-  // (found for the whole group at once, in scratch[band].keep).
-  void RasterizeGroupInFront(const internal::CullGroup& group, int band, const Band& b);
+  // The triangles of `group` that may cover a pixel centre (found for the whole group at once,
+  // in scratch[band].keep); `in_front`: every corner of the group lies between near and far,
+  // so no triangle needs clipping or depth checks.
+  void RasterizeGroup(const internal::CullGroup& group, bool in_front, int band, const Band& b);
   void TestChunk(int worker);
   // Appends the vertices of [begin, end) that pass the depth test to out[count...]; returns
   // the new count.

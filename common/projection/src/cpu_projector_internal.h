@@ -134,6 +134,10 @@ inline bool CoversNoPixelCentre(uint32_t c0, uint32_t c1, uint32_t c2) {
 // below a pixel: this one loop rejects them without a branch per triangle.
 void MayCoverPixelCentres(const uint32_t* triangles, size_t n, const uint32_t* cells,
                           uint8_t* keep);
+// The same for triangles that may cross the near plane: keep[t] = 1 also when a corner of
+// triangle t has depth < near or NaN (its cells say nothing before clipping).
+void MayCoverPixelCentresOrCrossNear(const uint32_t* triangles, size_t n, const uint32_t* cells,
+                                     const float* depth, float near, uint8_t* keep);
 
 // Appends (first_id + i, u[i], v[i], depth[i]) for every i < n with visible[i] to `out`,
 // which must have room for n + 1 entries; returns the number written.

@@ -148,6 +148,20 @@ void MayCoverPixelCentres(const uint32_t* __restrict triangles, size_t n,
   }
 }
 
+M2S_KERNEL_CLONES
+void MayCoverPixelCentresOrCrossNear(const uint32_t* __restrict triangles, size_t n,
+                                     const uint32_t* __restrict cells,
+                                     const float* __restrict depth, float near,
+                                     uint8_t* __restrict keep) {
+  for (size_t t = 0; t < n; ++t) {
+    const uint32_t* corner = triangles + 3 * t;
+    const bool in_front =
+        (depth[corner[0]] >= near) & (depth[corner[1]] >= near) & (depth[corner[2]] >= near);
+    keep[t] = static_cast<uint8_t>(
+        !in_front | !CoversNoPixelCentre(cells[corner[0]], cells[corner[1]], cells[corner[2]]));
+  }
+}
+
 size_t CompactVisible(const float* __restrict u, const float* __restrict v,
                       const float* __restrict depth, const uint8_t* __restrict visible, size_t n,
                       VertexId first_id, ProjectedVertex* __restrict out) {

@@ -1,7 +1,9 @@
 // The software depth buffer of CpuProjector's occlusion test: near-plane clipping and a
 // pixel-centre, top-left-rule triangle rasteriser with perspective-correct camera depth.
 #include <algorithm>
+#include <bit>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <utility>
 #include <vector>
@@ -29,6 +31,9 @@ struct Edge {
         top_left(IsTopLeft(end.x - start.x, end.y - start.y)) {}
 };
 
+// Boxes at most this many pixels wide are rasterised by testing every pixel of a row.
+constexpr int kNarrowBox = 8;
+
 // One edge along one row: the pixel-centre coverage test, the only definition of "inside".
 struct RowEdge {
   double row_offset;  // w at px = 0 on this row
@@ -36,9 +41,24 @@ struct RowEdge {
   bool top_left;
   bool Inside(int x) const {
     const double w = row_offset + step_x * (x + 0.5);
-    return top_left ? w >= 0.0 : w > 0.0;
+    return (w > 0.0) | (top_left & (w == 0.0));  // w >= 0 on a top or left edge, w > 0 on others
   }
 };
+
+// The pixels of a row inside all three edges, for a narrow box [x0, x0 + width): bit i is set
+// when pixel x0 + i is inside. Every pixel is tested without branches (a small triangle's rows
+// are one or two pixels wide, and ClipSpan's searches mispredict there). Along a row each edge
+// function is monotonic in x, also as rounded, so the set bits are one interval: the span
+// ClipSpan finds.
+uint32_t InsideMask(const RowEdge (&edges)[3], int x0, int width) {
+  uint32_t mask = 0;
+  for (int i = 0; i < width; ++i) {
+    const int x = x0 + i;
+    const bool inside = edges[0].Inside(x) & edges[1].Inside(x) & edges[2].Inside(x);
+    mask |= static_cast<uint32_t>(inside) << i;
+  }
+  return mask;
+}
 
 // Narrows [*lo, *hi] to the pixels inside `e`. w is linear in x, so the inside pixels of a row
 // form one interval; its end is found analytically and then checked with Inside() exactly.
@@ -148,13 +168,23 @@ void RasterizeTriangle(const RasterVertex& a, const RasterVertex& b_in, const Ra
   // Inside the triangle 1/Z is at least the smallest vertex value; rounding must not go below.
   const float min_inv_z = static_cast<float>(std::min({a.inv_z, b.inv_z, c.inv_z}) * (1.0 - 1e-6));
   const float step = static_cast<float>(dx);
+  const int width = x1 - x0 + 1;
   for (int y = y0; y <= y1; ++y) {
     const double py = y + 0.5;
+    const RowEdge row_edges[3] = {
+        {edges[0].offset + edges[0].step_y * py, edges[0].step_x, edges[0].top_left},
+        {edges[1].offset + edges[1].step_y * py, edges[1].step_x, edges[1].top_left},
+        {edges[2].offset + edges[2].step_y * py, edges[2].step_x, edges[2].top_left}};
     int lo = x0, hi = x1;
-    for (const Edge& e : edges) {
-      ClipSpan(RowEdge{e.offset + e.step_y * py, e.step_x, e.top_left}, &lo, &hi);
+    if (width <= kNarrowBox) {
+      const uint32_t mask = InsideMask(row_edges, x0, width);
+      if (mask == 0) continue;
+      lo = x0 + std::countr_zero(mask);
+      hi = x0 + 31 - std::countl_zero(mask);
+    } else {
+      for (const RowEdge& e : row_edges) ClipSpan(e, &lo, &hi);
+      if (lo > hi) continue;
     }
-    if (lo > hi) continue;
     // In float relative to the span start, so the loop vectorises and stays accurate.
     const float start = static_cast<float>(dx * (lo + 0.5) + dy * py + at_origin);
     float* out = buffer->row(y) + lo;
