@@ -91,7 +91,9 @@ TEST(CpuProjectorBalancedTest, SameSelectionAsProjectingEverythingWithLessWork) 
           tested_all += p.last_vertices_tested();
         }
         ASSERT_LE(reference.size(), static_cast<size_t>(budget));
-        if (k + 1 < poses.size()) ASSERT_FALSE(reference.empty());
+        if (k + 1 < poses.size()) {
+          ASSERT_FALSE(reference.empty());
+        }
         ExpectSameVertices(balanced, reference);
       }
     }

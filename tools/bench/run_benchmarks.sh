@@ -80,7 +80,7 @@ extra="$work/extra.md"
 if [[ "${BENCH_EXTRA:-1}" != 0 && -x "$bin/bench_projection" ]]; then
   echo "bench: bench_projection (short)..." >&2
   { echo; echo '### bench_projection (`--benchmark_min_time=0.05`)'; echo; echo '```';
-    "$bin/bench_projection" --benchmark_min_time=0.05 2>&1 | tail -n 30; echo '```'; } >>"$extra"
+    "$bin/bench_projection" --benchmark_min_time=0.05 2>&1 | grep -E '^(BM_|GPU projector)'; echo '```'; } >>"$extra"
 fi
 if [[ "${BENCH_KEYED:-0}" == 1 && -x "$bin/bench_bus_auth" ]]; then
   echo "bench: bench_bus_auth..." >&2

@@ -47,6 +47,42 @@ FeatureGrid FeatureGrid::ForImage(int width, int height) {
   return grid;
 }
 
+uint32_t BalancedLevels(std::span<const uint32_t> count, int budget) {
+  auto whole_levels_size = [&](uint32_t level) {
+    size_t total = 0;
+    for (const uint32_t k : count) total += std::min(k, level);
+    return total;
+  };
+  uint32_t lo = 0, hi = count.empty() ? 0 : *std::max_element(count.begin(), count.end());
+  while (lo < hi) {  // the largest level that fits
+    const uint32_t mid = lo + (hi - lo + 1) / 2;
+    if (whole_levels_size(mid) <= static_cast<size_t>(std::max(budget, 0))) {
+      lo = mid;
+    } else {
+      hi = mid - 1;
+    }
+  }
+  return lo;
+}
+
+std::vector<uint32_t> BalancedTakes(std::span<const uint32_t> count, uint32_t levels, int budget,
+                                    std::span<const uint64_t> next_rank) {
+  std::vector<uint32_t> take(count.size());
+  std::vector<std::pair<uint64_t, uint32_t>> candidates;  // (next rank, cell)
+  size_t kept = 0;
+  for (size_t c = 0; c < count.size(); ++c) {
+    take[c] = std::min(count[c], levels);
+    kept += take[c];
+    if (count[c] > levels) candidates.emplace_back(next_rank[c], static_cast<uint32_t>(c));
+  }
+  const size_t room = static_cast<size_t>(std::max(budget, 0));
+  const size_t rest = kept >= room ? 0 : std::min(candidates.size(), room - kept);
+  std::nth_element(candidates.begin(), candidates.begin() + static_cast<ptrdiff_t>(rest),
+                   candidates.end());
+  for (size_t k = 0; k < rest; ++k) ++take[candidates[k].second];
+  return take;
+}
+
 std::vector<uint32_t> SelectBalanced(std::span<const VertexId> ids, std::span<const int> cells,
                                      int budget) {
   const size_t n = ids.size();
@@ -60,22 +96,7 @@ std::vector<uint32_t> SelectBalanced(std::span<const VertexId> ids, std::span<co
   for (const int c : cells) num_cells = std::max(num_cells, c + 1);
   std::vector<uint32_t> count(static_cast<size_t>(num_cells), 0);
   for (const int c : cells) ++count[static_cast<size_t>(c)];
-  // Whole levels: the largest L with sum over cells of min(count, L) <= budget.
-  auto whole_levels_size = [&](uint32_t level) {
-    size_t total = 0;
-    for (const uint32_t k : count) total += std::min(k, level);
-    return total;
-  };
-  uint32_t lo = 0, hi = static_cast<uint32_t>(n);
-  while (lo < hi) {  // the largest level that fits
-    const uint32_t mid = lo + (hi - lo + 1) / 2;
-    if (whole_levels_size(mid) <= static_cast<size_t>(budget)) {
-      lo = mid;
-    } else {
-      hi = mid - 1;
-    }
-  }
-  const uint32_t levels = lo;
+  const uint32_t levels = BalancedLevels(count, budget);
   // One pass keeps the levels + 1 lowest-ranked features of every cell in a max-heap of that
   // size (a view of millions of features needs no per-feature storage); ranks are distinct,
   // so the result does not depend on the features' order.
@@ -103,19 +124,17 @@ std::vector<uint32_t> SelectBalanced(std::span<const VertexId> ids, std::span<co
       std::push_heap(heap, heap + size);
     }
   }
-  // Every cell keeps its `levels` lowest-ranked features; the next one of each fuller cell is
-  // a candidate for the rest of the budget, lowest rank first.
-  std::vector<Ranked> candidates;
+  // Every cell keeps its `levels` lowest-ranked features, and the fuller cells' next ones
+  // share the rest of the budget by rank.
+  std::vector<uint64_t> next_rank(count.size(), 0);
   for (size_t c = 0; c < count.size(); ++c) {
-    Ranked* first = lowest.data() + begin[c];
-    Ranked* last = lowest.data() + begin[c + 1];
-    std::sort(first, last);
-    if (count[c] > levels) candidates.push_back(first[levels]);
-    for (Ranked* it = first; it != last && it - first < levels; ++it) kept.push_back(it->index);
+    std::sort(lowest.begin() + begin[c], lowest.begin() + begin[c + 1]);
+    if (count[c] > levels) next_rank[c] = lowest[begin[c] + levels].rank;
   }
-  const size_t rest = static_cast<size_t>(budget) - kept.size();
-  std::nth_element(candidates.begin(), candidates.begin() + rest, candidates.end());
-  for (size_t k = 0; k < rest; ++k) kept.push_back(candidates[k].index);
+  const std::vector<uint32_t> take = BalancedTakes(count, levels, budget, next_rank);
+  for (size_t c = 0; c < count.size(); ++c) {
+    for (uint32_t k = 0; k < take[c]; ++k) kept.push_back(lowest[begin[c] + k].index);
+  }
   std::sort(kept.begin(), kept.end());
   return kept;
 }

@@ -378,12 +378,19 @@ Expected<std::unique_ptr<CpuProjector>> CpuProjector::Create(const Scene& scene,
   return std::unique_ptr<CpuProjector>(new CpuProjector(std::move(impl)));
 }
 
-Status CpuProjector::Project(const Pose3& world_from_camera, const Camera& camera,
-                             std::vector<ProjectedVertex>* out) {
-  if (out == nullptr) return Status::Error("CpuProjector::Project: null output");
+Status CpuProjector::Impl::CheckFrame(const char* caller, const Pose3& world_from_camera,
+                                      const Camera& camera, std::vector<ProjectedVertex>* out) {
+  if (out == nullptr) return Status::Error(std::string(caller) + ": null output");
   out->clear();
   if (Status s = camera.Check(); !s) return s;
   if (!world_from_camera.AllFinite()) return Status::Error("camera pose is not finite");
+  return Status::Ok();
+}
+
+Status CpuProjector::Project(const Pose3& world_from_camera, const Camera& camera,
+                             std::vector<ProjectedVertex>* out) {
+  if (Status s = Impl::CheckFrame("CpuProjector::Project", world_from_camera, camera, out); !s)
+    return s;
 
   Impl& m = *impl_;
   m.balanced = false;

@@ -159,56 +159,49 @@ void CpuProjector::Impl::BalancedChunk(int worker) {
 
 bool CpuProjector::Impl::SelectFromHeaps(int budget, std::vector<ProjectedVertex>* out) {
   const auto cells = static_cast<size_t>(grid.num_cells());
-  // Per cell: the merged heap's lowest `capacity` entries, sorted by rank, and the count
-  // (capped at `capacity` where some worker may have left groups early).
-  std::vector<std::vector<RankedVertex>> lowest(cells);
-  std::vector<uint32_t> count(cells, 0);
+  // Per cell: the workers' heaps merged and sorted by rank, the lowest `capacity` of them
+  // kept (at merged[c * stride ...]), and the count (capped at `capacity` where some worker
+  // may have left groups early).
+  const size_t stride = static_cast<size_t>(active_workers) * heap_capacity;
+  merged.resize(cells * stride);
+  merged_count.assign(cells, 0);
   bool all_exact = true;
   size_t total = 0;
   for (size_t c = 0; c < cells; ++c) {
-    size_t sum = 0;
+    RankedVertex* lowest = merged.data() + c * stride;
+    size_t size = 0, sum = 0;
     bool capped = false;
     for (int w = 0; w < active_workers; ++w) {
       const CellHeaps& h = scratch[w].heaps;
       const RankedVertex* heap = h.entries.data() + c * heap_capacity;
-      lowest[c].insert(lowest[c].end(), heap, heap + h.filled[c]);
+      std::copy(heap, heap + h.filled[c], lowest + size);
+      size += h.filled[c];
       sum += h.count[c];
       capped = capped || h.filled[c] == heap_capacity;
     }
-    std::sort(lowest[c].begin(), lowest[c].end());
-    if (lowest[c].size() > heap_capacity) lowest[c].resize(heap_capacity);
+    std::sort(lowest, lowest + size);
     capped = capped || sum >= heap_capacity;
     all_exact = all_exact && !capped;
-    count[c] = capped ? heap_capacity : static_cast<uint32_t>(sum);
-    total += count[c];
+    merged_count[c] = capped ? heap_capacity : static_cast<uint32_t>(sum);
+    total += merged_count[c];
   }
   out->clear();
   if (all_exact && total <= static_cast<size_t>(budget)) {  // SelectBalanced keeps everything
-    for (const auto& cell : lowest) {
-      for (const RankedVertex& r : cell) out->push_back(r.vertex);
+    for (size_t c = 0; c < cells; ++c) {
+      for (uint32_t k = 0; k < merged_count[c]; ++k) out->push_back(merged[c * stride + k].vertex);
     }
   } else {
-    // Whole levels: the largest L with sum over cells of min(count, L) <= budget; exact while
-    // L < capacity.
-    auto whole_levels_size = [&](uint32_t level) {
-      size_t size = 0;
-      for (const uint32_t k : count) size += std::min(k, level);
-      return size;
-    };
-    uint32_t levels = 0;
-    while (levels < heap_capacity && whole_levels_size(levels + 1) <= static_cast<size_t>(budget))
-      ++levels;
+    // Exact while the levels stay below the heaps' capacity.
+    const uint32_t levels = BalancedLevels(merged_count, budget);
     if (levels >= heap_capacity) return false;  // more levels than the heaps hold
-    std::vector<RankedVertex> candidates;
+    next_rank.assign(cells, 0);
     for (size_t c = 0; c < cells; ++c) {
-      for (uint32_t k = 0; k < levels && k < lowest[c].size(); ++k)
-        out->push_back(lowest[c][k].vertex);
-      if (count[c] > levels) candidates.push_back(lowest[c][levels]);
+      if (merged_count[c] > levels) next_rank[c] = merged[c * stride + levels].rank;
     }
-    const size_t rest = static_cast<size_t>(budget) - out->size();
-    std::nth_element(candidates.begin(), candidates.begin() + static_cast<ptrdiff_t>(rest),
-                     candidates.end());
-    for (size_t k = 0; k < rest; ++k) out->push_back(candidates[k].vertex);
+    const std::vector<uint32_t> take = BalancedTakes(merged_count, levels, budget, next_rank);
+    for (size_t c = 0; c < cells; ++c) {
+      for (uint32_t k = 0; k < take[c]; ++k) out->push_back(merged[c * stride + k].vertex);
+    }
   }
   std::sort(out->begin(), out->end(),
             [](const ProjectedVertex& a, const ProjectedVertex& b) { return a.id < b.id; });
@@ -219,10 +212,10 @@ Status CpuProjector::ProjectBalanced(const Pose3& world_from_camera, const Camer
                                      const FeatureGrid& grid, int budget,
                                      std::vector<ProjectedVertex>* out) {
   if (budget <= 0) return Projector::ProjectBalanced(world_from_camera, camera, grid, budget, out);
-  if (out == nullptr) return Status::Error("CpuProjector::ProjectBalanced: null output");
-  out->clear();
-  if (Status s = camera.Check(); !s) return s;
-  if (!world_from_camera.AllFinite()) return Status::Error("camera pose is not finite");
+  if (Status s = Impl::CheckFrame("CpuProjector::ProjectBalanced", world_from_camera, camera, out);
+      !s) {
+    return s;
+  }
   Impl& m = *impl_;
   m.grid = grid;
   m.balanced = true;

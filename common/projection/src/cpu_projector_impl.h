@@ -110,6 +110,9 @@ struct CpuProjector::Impl {
   bool balanced = false;  // the last frame was ProjectBalanced's
   uint32_t heap_capacity = 0;
   std::vector<CellBox> cell_boxes;
+  std::vector<RankedVertex> merged;  // SelectFromHeaps' buffers, kept between frames
+  std::vector<uint32_t> merged_count;
+  std::vector<uint64_t> next_rank;
   std::vector<uint16_t> rank_offsets;
   std::vector<uint32_t> rank_order_size;
   size_t frame_vertices = 0;        // vertices in the visible groups
@@ -153,6 +156,10 @@ struct CpuProjector::Impl {
         std::clamp(static_cast<int>(std::floor(v * scale_y)), 0, depth_buffer.height() - 1);
     return depth <= dilated.row(by)[bx] * relative + absolute;
   }
+  // The checks every frame starts with: a non-null `out` (cleared), a valid camera, a finite
+  // pose.
+  static Status CheckFrame(const char* caller, const Pose3& world_from_camera, const Camera& camera,
+                           std::vector<ProjectedVertex>* out);
   void PrepareRankOrder();
   void CellBoxOf(const internal::ScreenBox& box, CellBox* cells) const;
   void BalancedChunk(int worker);

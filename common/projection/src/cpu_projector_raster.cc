@@ -50,7 +50,7 @@ struct RowEdge {
 // are one or two pixels wide, and ClipSpan's searches mispredict there). Along a row each edge
 // function is monotonic in x, also as rounded, so the set bits are one interval: the span
 // ClipSpan finds.
-uint32_t InsideMask(const RowEdge (&edges)[3], int x0, int width) {
+[[gnu::always_inline]] inline uint32_t InsideMask(const RowEdge (&edges)[3], int x0, int width) {
   uint32_t mask = 0;
   for (int i = 0; i < width; ++i) {
     const int x = x0 + i;
@@ -62,7 +62,9 @@ uint32_t InsideMask(const RowEdge (&edges)[3], int x0, int width) {
 
 // Narrows [*lo, *hi] to the pixels inside `e`. w is linear in x, so the inside pixels of a row
 // form one interval; its end is found analytically and then checked with Inside() exactly.
-void ClipSpan(const RowEdge& e, int* lo, int* hi) {
+// Always inlined, like InsideMask: compiled inside each variant of RasterizeTriangle (the
+// same rounding and instructions as its caller's; out of line it would be the baseline build).
+[[gnu::always_inline]] inline void ClipSpan(const RowEdge& e, int* lo, int* hi) {
   if (*lo > *hi) return;
   if (e.step_x == 0.0) {
     if (!e.Inside(*lo)) *hi = *lo - 1;

@@ -3,7 +3,10 @@
 #include <gtest/gtest.h>
 
 #include <iostream>
+#include <memory>
 #include <set>
+#include <utility>
+#include <vector>
 
 #include "gpu_test_util.h"
 #include "m2s/common/cpu_projector.h"
@@ -95,7 +98,33 @@ class GpuOcclusionTest : public ::testing::Test {
     context_ = SharedContext();
     ASSERT_NE(context_, nullptr) << GlContext::CreateHeadless().error();
   }
+  // GPU with occlusion, CPU with occlusion and CPU without (the vertices the rule hides), the
+  // three projectors the agreement tests compare.
+  void CreateProjectors(const Scene& scene) {
+    ProjectorOptions options;
+    options.occlusion = true;
+    auto gpu = GpuProjector::Create(scene, options, context_);
+    ASSERT_TRUE(gpu) << gpu.error();
+    auto cpu = CpuProjector::Create(scene, options);
+    ASSERT_TRUE(cpu) << cpu.error();
+    auto plain = CpuProjector::Create(scene, ProjectorOptions{});
+    ASSERT_TRUE(plain) << plain.error();
+    gpu_ = std::move(*gpu);
+    cpu_ = std::move(*cpu);
+    plain_ = std::move(*plain);
+  }
+  // Projects one view with the three and adds it to `agreement`.
+  void AddView(const Pose3& pose, const Camera& camera, Agreement* agreement) {
+    ASSERT_TRUE(gpu_->Project(pose, camera, &gpu_out_));
+    ASSERT_TRUE(cpu_->Project(pose, camera, &cpu_out_));
+    ASSERT_TRUE(plain_->Project(pose, camera, &plain_out_));
+    agreement->Add(gpu_out_, cpu_out_, plain_out_);
+  }
+
   GlContext* context_ = nullptr;
+  std::unique_ptr<GpuProjector> gpu_;
+  std::unique_ptr<CpuProjector> cpu_, plain_;
+  std::vector<ProjectedVertex> gpu_out_, cpu_out_, plain_out_;
 };
 
 TEST_F(GpuOcclusionTest, WallHidesExactlyTheKnownSet) {
@@ -198,27 +227,15 @@ TEST_F(GpuOcclusionTest, ImageSizeChangesAndHostStateIsRestored) {
 }
 
 TEST_F(GpuOcclusionTest, AgreesWithCpuOnDefaultScene) {
-  const Scene scene = MakeDefaultScene();
-  ProjectorOptions options;
-  options.occlusion = true;
-  auto gpu = GpuProjector::Create(scene, options, context_);
-  ASSERT_TRUE(gpu) << gpu.error();
-  auto cpu = CpuProjector::Create(scene, options);
-  ASSERT_TRUE(cpu) << cpu.error();
-  auto plain = CpuProjector::Create(scene, ProjectorOptions{});
-  ASSERT_TRUE(plain) << plain.error();
+  ASSERT_NO_FATAL_FAILURE(CreateProjectors(MakeDefaultScene()));
   const Camera camera = Camera::FromHorizontalFov(640, 480, 90.0);
   Agreement agreement;
-  std::vector<ProjectedVertex> gpu_out, cpu_out, plain_out;
   for (int k = 0; k < 8; ++k) {
     const double a = k * M_PI / 4;
     const Eigen::Vector3d eye(0.5 * std::cos(a), 0.4 * std::sin(a), 1.5);
     const Pose3 pose =
         LookAt(eye, eye + Eigen::Vector3d(std::cos(a + 0.3), std::sin(a + 0.3), -0.4));
-    ASSERT_TRUE((*gpu)->Project(pose, camera, &gpu_out));
-    ASSERT_TRUE((*cpu)->Project(pose, camera, &cpu_out));
-    ASSERT_TRUE((*plain)->Project(pose, camera, &plain_out));
-    agreement.Add(gpu_out, cpu_out, plain_out);
+    ASSERT_NO_FATAL_FAILURE(AddView(pose, camera, &agreement));
   }
   ASSERT_GT(agreement.union_ids, 0u);
   EXPECT_GT(agreement.hidden, agreement.union_ids / 20)
@@ -257,14 +274,7 @@ TEST_F(GpuOcclusionTest, CulledTriangleGroupsChangeNothing) {
       }
     }
   }
-  ProjectorOptions options;
-  options.occlusion = true;
-  auto gpu = GpuProjector::Create(scene, options, context_);
-  ASSERT_TRUE(gpu) << gpu.error();
-  auto cpu = CpuProjector::Create(scene, options);
-  ASSERT_TRUE(cpu) << cpu.error();
-  auto plain = CpuProjector::Create(scene, ProjectorOptions{});
-  ASSERT_TRUE(plain) << plain.error();
+  ASSERT_NO_FATAL_FAILURE(CreateProjectors(scene));
   const Camera camera = Camera::FromHorizontalFov(640, 480, 60.0, 0.05, 10.0);
   const size_t num_triangles = scene.num_triangles();
   // Along the first row; up the gap between two columns; down onto one patch.
@@ -272,15 +282,11 @@ TEST_F(GpuOcclusionTest, CulledTriangleGroupsChangeNothing) {
       LookAt({-3, 0.5, 1.5}, {21, 0.5, 0}), LookAt({10.5, -2, 1.5}, {10.5, 20, 0.5}),
       LookAt({12.5, 12.5, 3}, {12.5, 12.5, 0}, Eigen::Vector3d::UnitY())};
   Agreement agreement;
-  std::vector<ProjectedVertex> gpu_out, cpu_out, plain_out;
   for (size_t k = 0; k < poses.size(); ++k) {
     SCOPED_TRACE("pose " + std::to_string(k));
-    ASSERT_TRUE((*gpu)->Project(poses[k], camera, &gpu_out));
-    ASSERT_TRUE((*cpu)->Project(poses[k], camera, &cpu_out));
-    ASSERT_TRUE((*plain)->Project(poses[k], camera, &plain_out));
-    EXPECT_GT((*gpu)->last_triangles_drawn(), 0u);
-    EXPECT_LT((*gpu)->last_triangles_drawn(), num_triangles / 2);
-    agreement.Add(gpu_out, cpu_out, plain_out);
+    ASSERT_NO_FATAL_FAILURE(AddView(poses[k], camera, &agreement));
+    EXPECT_GT(gpu_->last_triangles_drawn(), 0u);
+    EXPECT_LT(gpu_->last_triangles_drawn(), num_triangles / 2);
   }
   ASSERT_GT(agreement.union_ids, 0u);
   EXPECT_GT(agreement.hidden, agreement.union_ids / 5) << "the ridges should hide many vertices";
@@ -291,9 +297,10 @@ TEST_F(GpuOcclusionTest, CulledTriangleGroupsChangeNothing) {
   // edges; the same 3 with every triangle group drawn). The bound allows 3x that; a group
   // culled wrongly would let hundreds of the 15105 hidden vertices through.
   EXPECT_GT(agreement.fraction(), 0.999);
-  ASSERT_TRUE((*gpu)->Project(LookAt({10, 10, 5}, {10, 10, 50}), camera, &gpu_out));
-  EXPECT_EQ((*gpu)->last_triangles_drawn(), 0u);
-  EXPECT_TRUE(gpu_out.empty());
+  std::vector<ProjectedVertex> sky;
+  ASSERT_TRUE(gpu_->Project(LookAt({10, 10, 5}, {10, 10, 50}), camera, &sky));
+  EXPECT_EQ(gpu_->last_triangles_drawn(), 0u);
+  EXPECT_TRUE(sky.empty());
 }
 
 }  // namespace

@@ -81,6 +81,17 @@ struct FeatureGrid {
 std::vector<uint32_t> SelectBalanced(std::span<const VertexId> ids, std::span<const int> cells,
                                      int budget);
 
+// SelectBalanced's rule on per-cell counts, for callers that gather each cell's lowest ranks
+// themselves (CpuProjector::ProjectBalanced). Whole levels: the largest L, at most the largest
+// count, with sum over cells of min(count[c], L) <= budget (budget >= 0).
+uint32_t BalancedLevels(std::span<const uint32_t> count, int budget);
+// How many of each cell's lowest-ranked features the selection keeps: min(count[c], levels),
+// and one more in the cells whose next feature is among the lowest-ranked of the cells' next
+// features, as many as the budget leaves (next_rank[c]: the rank of cell c's next feature,
+// read where count[c] > levels; ranks distinct). `levels` is BalancedLevels(count, budget).
+std::vector<uint32_t> BalancedTakes(std::span<const uint32_t> count, uint32_t levels, int budget,
+                                    std::span<const uint64_t> next_rank);
+
 // Balanced selection over any feature layout, with buffers kept between calls (a view of
 // millions of features allocates nothing per frame in steady state).
 class BalancedSelector {
