@@ -1,6 +1,7 @@
 // bench_projection, large-scene part: a mesh file of ~10^7 vertices given by path, its load
 // time (parsed, then through the scene cache) and the CPU projector on it, with the culling
-// of vertex and triangle groups, with and without occlusion, at 640x480 (the clients'
+// of vertex and triangle groups, with and without occlusion, and the client's frame (the
+// balanced selection of 2000, ProjectBalanced, with occlusion), at 640x480 (the clients'
 // default camera). Skipped when no file is given.
 //
 //   export M2S_BENCH_LARGE_SCENE=~/.cache/m2s-corpus/large/dragons.ply
@@ -24,6 +25,7 @@
 #include <benchmark/benchmark.h>
 
 #include "m2s/common/cpu_projector.h"
+#include "m2s/common/feature_rank.h"
 #include "m2s/common/scene.h"
 #include "m2s/common/trajectory.h"
 
@@ -98,6 +100,8 @@ void BM_LargeSceneLoad(benchmark::State& state) {
   state.counters["vertices"] = static_cast<double>(vertices);
 }
 
+constexpr int kSendBudget = 2000;  // m2s_client's default --budget
+
 void BM_LargeProjectCpu(benchmark::State& state) {
   if (EnvPath("M2S_BENCH_LARGE_SCENE").empty()) {
     state.SkipWithError("set M2S_BENCH_LARGE_SCENE to a large mesh file to run this benchmark");
@@ -118,6 +122,9 @@ void BM_LargeProjectCpu(benchmark::State& state) {
     return;
   }
   const Camera camera = Camera::FromHorizontalFov(640, 480, 90.0);
+  // balanced: the client's frame, the balanced selection of m2s_client's default budget.
+  const bool balanced = state.range(1) != 0;
+  const FeatureGrid grid = FeatureGrid::ForImage(camera.width, camera.height);
   const std::vector<Pose3> poses = LargePoses(*scene);
   std::vector<ProjectedVertex> features;
   std::vector<double> times;
@@ -125,7 +132,10 @@ void BM_LargeProjectCpu(benchmark::State& state) {
   size_t frame = 0;
   for (auto _ : state) {
     const auto start = std::chrono::steady_clock::now();
-    const Status status = (*projector)->Project(poses[frame++ % poses.size()], camera, &features);
+    const Pose3& pose = poses[frame++ % poses.size()];
+    const Status status =
+        balanced ? (*projector)->ProjectBalanced(pose, camera, grid, kSendBudget, &features)
+                 : (*projector)->Project(pose, camera, &features);
     times.push_back(SecondsSince(start) * 1e3);
     if (!status) state.SkipWithError(status.message().c_str());
     visible += static_cast<double>(features.size());
@@ -140,9 +150,10 @@ void BM_LargeProjectCpu(benchmark::State& state) {
 
 BENCHMARK(BM_LargeSceneLoad)->ArgName("cached")->Arg(0)->Arg(1)->Iterations(1)->UseRealTime();
 BENCHMARK(BM_LargeProjectCpu)
-    ->ArgName("occlusion")
-    ->Arg(0)
-    ->Arg(1)
+    ->ArgNames({"occlusion", "balanced"})
+    ->Args({0, 0})
+    ->Args({1, 0})
+    ->Args({1, 1})
     ->Iterations(61)
     ->UseRealTime()
     ->Unit(benchmark::kMillisecond);

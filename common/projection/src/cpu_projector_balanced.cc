@@ -25,6 +25,9 @@ constexpr uint64_t kNoBound = std::numeric_limits<uint64_t>::max();
 // The heaps' largest ranks over a group's box are read at its start and after 32, 64, 128,
 // ... of its vertices (a stale bound only visits more vertices, at most twice as many).
 constexpr size_t kFirstBoundCheck = 32;
+// The rank order reads a group's arrays at random: their entries are fetched this many
+// vertices ahead of their visit.
+constexpr size_t kPrefetchAhead = 32;
 
 }  // namespace
 
@@ -86,8 +89,10 @@ void CpuProjector::Impl::CellHeaps::Add(size_t c, uint32_t capacity, uint64_t ra
   }
 }
 
-void CpuProjector::Impl::VisitByRank(size_t k, const float* u, const float* v, const float* depth,
-                                     const uint8_t* visible, CellHeaps& h) {
+M2S_KERNEL_CLONES  // the cell's floor in one SSE4.1 instruction where there is one
+    void
+    CpuProjector::Impl::VisitByRank(size_t k, const float* u, const float* v, const float* depth,
+                                    const uint8_t* visible, CellHeaps& h) {
   const internal::CullGroup& group = vertex_groups[visible_groups[k]];
   const uint16_t* order = rank_offsets.data() + group.begin;
   const CellBox& box = cell_boxes[k];
@@ -98,6 +103,13 @@ void CpuProjector::Impl::VisitByRank(size_t k, const float* u, const float* v, c
     if (j == next_check) {  // at doubling intervals: a box may cover every cell
       bound = h.Bound(box, heap_capacity);
       next_check *= 2;
+    }
+    if (j + kPrefetchAhead < n) {
+      const uint32_t ahead = order[j + kPrefetchAhead];
+      __builtin_prefetch(u + ahead);
+      __builtin_prefetch(v + ahead);
+      __builtin_prefetch(depth + ahead);
+      __builtin_prefetch(visible + ahead);
     }
     const uint32_t offset = order[j];
     const auto id = static_cast<VertexId>(group.begin + offset);
