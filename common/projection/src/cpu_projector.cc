@@ -199,9 +199,9 @@ void CpuProjector::Impl::RasterizeTriangleAt(size_t t, const Band& band) {
   }
 }
 
-M2S_KERNEL_CLONES  // the box tests' rounding in SSE4.1 instructions where there are
-    void
-    CpuProjector::Impl::RasterizeInFront(const uint32_t* idx, const Band& band) {
+// Built twice (M2S_KERNEL_CLONES): the box tests' rounding is one SSE4.1 instruction.
+M2S_KERNEL_CLONES
+void CpuProjector::Impl::RasterizeInFront(const uint32_t* idx, const Band& band) {
   if (internal::CoversNoPixelCentre(all_cells[idx[0]], all_cells[idx[1]], all_cells[idx[2]]))
     return;
   // A triangle whose box holds no pixel centre of the band writes nothing: rejected before
@@ -225,17 +225,9 @@ M2S_KERNEL_CLONES  // the box tests' rounding in SSE4.1 instructions where there
 void CpuProjector::Impl::TestChunk(int worker) {
   WorkerScratch& s = scratch[worker];
   size_t count = 0;
-  const float relative = 1.f + static_cast<float>(options.occlusion_depth_bias_relative);
-  const float absolute = static_cast<float>(options.occlusion_depth_bias_m);
   s.tested = 0;
   for (size_t k = visible_split[worker]; k < visible_split[worker + 1]; ++k) {
-    // A group entirely behind the buffer (with the bias) keeps no vertex.
-    const internal::ScreenBox& box = vertex_footprints[k];
-    if (box.bounded &&
-        (box.empty() || dilated.AllNearerThan(box.x0, box.x1, box.y0, box.y1, relative, absolute,
-                                              static_cast<float>(box.min_depth)))) {
-      continue;
-    }
+    if (GroupHidden(k)) continue;
     const internal::CullGroup& group = vertex_groups[visible_groups[k]];
     ProjectedVertex* out = ReserveOut(s, count + (group.end - group.begin));
     count = TestGroup(group.begin, group.end, out, count);
@@ -282,6 +274,10 @@ void CpuProjector::Impl::Prepare(const Pose3& world_from_camera, const Camera& f
     cell_scale_x = static_cast<float>(static_cast<double>(bw) / camera.width);
     cell_scale_y = static_cast<float>(static_cast<double>(bh) / camera.height);
     dilated.Resize(bw, bh);
+    depth_rule.scale_x = static_cast<float>(bw) / static_cast<float>(camera.width);
+    depth_rule.scale_y = static_cast<float>(bh) / static_cast<float>(camera.height);
+    depth_rule.relative = 1.f + static_cast<float>(options.occlusion_depth_bias_relative);
+    depth_rule.absolute = static_cast<float>(options.occlusion_depth_bias_m);
   }
   Cull(world_from_camera, pool_size, balanced);
   if (!options.occlusion) return;

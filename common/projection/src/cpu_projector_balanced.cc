@@ -89,10 +89,10 @@ void CpuProjector::Impl::CellHeaps::Add(size_t c, uint32_t capacity, uint64_t ra
   }
 }
 
-M2S_KERNEL_CLONES  // the cell's floor in one SSE4.1 instruction where there is one
-    void
-    CpuProjector::Impl::VisitByRank(size_t k, const float* u, const float* v, const float* depth,
-                                    const uint8_t* visible, CellHeaps& h) {
+// Built twice (M2S_KERNEL_CLONES): the cell's floor is one SSE4.1 instruction.
+M2S_KERNEL_CLONES
+void CpuProjector::Impl::VisitByRank(size_t k, const float* u, const float* v, const float* depth,
+                                     const uint8_t* visible, CellHeaps& h) {
   const internal::CullGroup& group = vertex_groups[visible_groups[k]];
   const uint16_t* order = rank_offsets.data() + group.begin;
   const CellBox& box = cell_boxes[k];
@@ -135,18 +135,11 @@ void CpuProjector::Impl::BalancedChunk(int worker) {
   h.count.assign(cells, 0);
   h.visited = 0;
   s.tested = 0;
-  const float relative = 1.f + static_cast<float>(options.occlusion_depth_bias_relative);
-  const float absolute = static_cast<float>(options.occlusion_depth_bias_m);
   for (size_t k = visible_split[worker]; k < visible_split[worker + 1]; ++k) {
     const internal::CullGroup& group = vertex_groups[visible_groups[k]];
     const size_t begin = group.begin, n = group.end - group.begin;
     if (options.occlusion) {
-      const internal::ScreenBox& box = vertex_footprints[k];
-      if (box.bounded &&
-          (box.empty() || dilated.AllNearerThan(box.x0, box.x1, box.y0, box.y1, relative, absolute,
-                                                static_cast<float>(box.min_depth)))) {
-        continue;
-      }
+      if (GroupHidden(k)) continue;
       const size_t before = h.visited;
       VisitByRank(k, all_u.data() + begin, all_v.data() + begin, all_depth.data() + begin,
                   all_visible.data() + begin, h);

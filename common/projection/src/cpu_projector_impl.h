@@ -115,6 +115,11 @@ struct CpuProjector::Impl {
   std::vector<uint64_t> next_rank;
   std::vector<uint16_t> rank_offsets;
   std::vector<uint32_t> rank_order_size;
+  // InFront's constants, set by Prepare for each frame with occlusion.
+  struct DepthRule {
+    float scale_x = 1.f, scale_y = 1.f;  // image pixels to depth-buffer pixels
+    float relative = 1.f, absolute = 0.f;
+  } depth_rule;
   size_t frame_vertices = 0;        // vertices in the visible groups
   size_t transformed_vertices = 0;  // with occlusion: in the groups transformed
 
@@ -144,17 +149,20 @@ struct CpuProjector::Impl {
   void Prepare(const Pose3& world_from_camera, const Camera& frame_camera, bool balanced);
   // The vertex test's depth rule (cpu_projector.h, occlusion 3) for an in-view vertex.
   bool InFront(float u, float v, float depth) const {
-    const float scale_x =
-        static_cast<float>(depth_buffer.width()) / static_cast<float>(camera.width);
-    const float scale_y =
-        static_cast<float>(depth_buffer.height()) / static_cast<float>(camera.height);
-    const float relative = 1.f + static_cast<float>(options.occlusion_depth_bias_relative);
-    const float absolute = static_cast<float>(options.occlusion_depth_bias_m);
-    const int bx =
-        std::clamp(static_cast<int>(std::floor(u * scale_x)), 0, depth_buffer.width() - 1);
-    const int by =
-        std::clamp(static_cast<int>(std::floor(v * scale_y)), 0, depth_buffer.height() - 1);
-    return depth <= dilated.row(by)[bx] * relative + absolute;
+    const int bx = std::clamp(static_cast<int>(std::floor(u * depth_rule.scale_x)), 0,
+                              depth_buffer.width() - 1);
+    const int by = std::clamp(static_cast<int>(std::floor(v * depth_rule.scale_y)), 0,
+                              depth_buffer.height() - 1);
+    return depth <= dilated.row(by)[bx] * depth_rule.relative + depth_rule.absolute;
+  }
+  // Visible vertex group k (as visible_groups) lies wholly behind the 3x3 maximum of the
+  // depth buffer, with the bias: none of its vertices passes InFront.
+  bool GroupHidden(size_t k) const {
+    const internal::ScreenBox& box = vertex_footprints[k];
+    return box.bounded &&
+           (box.empty() ||
+            dilated.AllNearerThan(box.x0, box.x1, box.y0, box.y1, depth_rule.relative,
+                                  depth_rule.absolute, static_cast<float>(box.min_depth)));
   }
   // The checks every frame starts with: a non-null `out` (cleared), a valid camera, a finite
   // pose.
