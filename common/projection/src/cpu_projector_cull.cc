@@ -23,83 +23,76 @@ CullGroup BoxOf(uint32_t begin, uint32_t end) {
   return group;
 }
 
-void Extend(CullGroup* group, float x, float y, float z) {
-  if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z)) return;
-  group->min = group->min.cwiseMin(Eigen::Vector3f(x, y, z));
-  group->max = group->max.cwiseMax(Eigen::Vector3f(x, y, z));
+void Extend(CullGroup* group, const Eigen::Vector3f& p) {
+  if (!p.allFinite()) return;
+  group->min = group->min.cwiseMin(p);
+  group->max = group->max.cwiseMax(p);
+}
+
+// The group [begin, end) boxed around the points at(i), i in [first, last).
+template <typename PointAt>
+CullGroup BoxPoints(uint32_t begin, uint32_t end, size_t first, size_t last, const PointAt& at) {
+  CullGroup group = BoxOf(begin, end);
+  for (size_t i = first; i < last; ++i) Extend(&group, at(i));
+  return group;
+}
+
+// [0, count) in runs of group_size, each boxed by box(begin, end).
+template <typename BoxRun>
+std::vector<CullGroup> SplitIntoGroups(size_t count, size_t group_size, const BoxRun& box) {
+  std::vector<CullGroup> groups;
+  groups.reserve((count + group_size - 1) / group_size);
+  for (size_t begin = 0; begin < count; begin += group_size) {
+    const size_t end = std::min(count, begin + group_size);
+    groups.push_back(box(static_cast<uint32_t>(begin), static_cast<uint32_t>(end)));
+  }
+  return groups;
 }
 
 }  // namespace
 
 CullGroup BoxVertices(const float* x, const float* y, const float* z, uint32_t begin,
                       uint32_t end) {
-  CullGroup group = BoxOf(begin, end);
-  for (size_t i = begin; i < end; ++i) Extend(&group, x[i], y[i], z[i]);
-  return group;
+  return BoxPoints(begin, end, begin, end,
+                   [&](size_t i) { return Eigen::Vector3f(x[i], y[i], z[i]); });
 }
 
 CullGroup BoxTriangles(const std::vector<uint32_t>& triangles, const float* x, const float* y,
                        const float* z, uint32_t begin, uint32_t end) {
-  CullGroup group = BoxOf(begin, end);
-  for (size_t i = 3 * size_t{begin}; i < 3 * size_t{end}; ++i) {
+  return BoxPoints(begin, end, 3 * size_t{begin}, 3 * size_t{end}, [&](size_t i) {
     const uint32_t v = triangles[i];
-    Extend(&group, x[v], y[v], z[v]);
-  }
-  return group;
+    return Eigen::Vector3f(x[v], y[v], z[v]);
+  });
 }
 
 std::vector<CullGroup> MakeVertexGroups(const float* x, const float* y, const float* z, size_t n,
                                         size_t group_size) {
-  std::vector<CullGroup> groups;
-  for (size_t begin = 0; begin < n; begin += group_size) {
-    const size_t end = std::min(n, begin + group_size);
-    groups.push_back(
-        BoxVertices(x, y, z, static_cast<uint32_t>(begin), static_cast<uint32_t>(end)));
-  }
-  return groups;
+  return SplitIntoGroups(n, group_size, [&](uint32_t begin, uint32_t end) {
+    return BoxVertices(x, y, z, begin, end);
+  });
 }
 
 std::vector<CullGroup> MakeVertexGroups(std::span<const Eigen::Vector3f> positions,
                                         size_t group_size) {
-  std::vector<CullGroup> groups;
-  for (size_t begin = 0; begin < positions.size(); begin += group_size) {
-    const size_t end = std::min(positions.size(), begin + group_size);
-    CullGroup group = BoxOf(static_cast<uint32_t>(begin), static_cast<uint32_t>(end));
-    for (size_t i = begin; i < end; ++i) {
-      Extend(&group, positions[i].x(), positions[i].y(), positions[i].z());
-    }
-    groups.push_back(group);
-  }
-  return groups;
+  return SplitIntoGroups(positions.size(), group_size, [&](uint32_t begin, uint32_t end) {
+    return BoxPoints(begin, end, begin, end, [&](size_t i) { return positions[i]; });
+  });
 }
 
 std::vector<CullGroup> MakeTriangleGroups(const std::vector<uint32_t>& triangles, const float* x,
                                           const float* y, const float* z, size_t group_size) {
-  std::vector<CullGroup> groups;
-  const size_t n = triangles.size() / 3;
-  for (size_t begin = 0; begin < n; begin += group_size) {
-    const size_t end = std::min(n, begin + group_size);
-    groups.push_back(
-        BoxTriangles(triangles, x, y, z, static_cast<uint32_t>(begin), static_cast<uint32_t>(end)));
-  }
-  return groups;
+  return SplitIntoGroups(triangles.size() / 3, group_size, [&](uint32_t begin, uint32_t end) {
+    return BoxTriangles(triangles, x, y, z, begin, end);
+  });
 }
 
 std::vector<CullGroup> MakeTriangleGroups(const std::vector<uint32_t>& triangles,
                                           std::span<const Eigen::Vector3f> positions,
                                           size_t group_size) {
-  std::vector<CullGroup> groups;
-  const size_t n = triangles.size() / 3;
-  for (size_t begin = 0; begin < n; begin += group_size) {
-    const size_t end = std::min(n, begin + group_size);
-    CullGroup group = BoxOf(static_cast<uint32_t>(begin), static_cast<uint32_t>(end));
-    for (size_t i = 3 * begin; i < 3 * end; ++i) {
-      const Eigen::Vector3f& p = positions[triangles[i]];
-      Extend(&group, p.x(), p.y(), p.z());
-    }
-    groups.push_back(group);
-  }
-  return groups;
+  return SplitIntoGroups(triangles.size() / 3, group_size, [&](uint32_t begin, uint32_t end) {
+    return BoxPoints(begin, end, 3 * size_t{begin}, 3 * size_t{end},
+                     [&](size_t i) { return positions[triangles[i]]; });
+  });
 }
 
 FrustumCuller::FrustumCuller(const Pose3& world_from_camera, const Camera& camera, double margin_px)
