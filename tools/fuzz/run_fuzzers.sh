@@ -4,8 +4,8 @@
 # (tests/fuzz/regressions/<target>_* and tests/fuzz/corpus/<target>/), then SECONDS of fuzzing
 # (default 10) from its seed corpus. An allocation larger than 512 MB counts as a finding
 # (-malloc_limit_mb), so does a run past 2 GB of memory or 10 s on one input. Prints one line
-# per target, in a fixed order; exits non-zero when any target
-# found something (its log and crash input are under BUILD_DIR/fuzz/).
+# per target, in a fixed order; exits non-zero when any target found something (its log and
+# crash input are under BUILD_DIR/fuzz/).
 #
 #   tools/fuzz/run_fuzzers.sh build-fuzz 60
 #   build-fuzz/bin/fuzz_session_control build-fuzz/fuzz/session_control-crash-...   # reproduce
