@@ -8,7 +8,7 @@
 
 namespace m2s::slam {
 
-Redundancy MeasureRedundancy(const MapData& m, KeyframeId id) {
+Redundancy MeasureRedundancy(const MapData& m, KeyframeId id, int min_other_observers) {
   Redundancy r;
   const Keyframe* kf = m.keyframe(id);
   if (kf == nullptr) return r;
@@ -16,13 +16,13 @@ Redundancy MeasureRedundancy(const MapData& m, KeyframeId id) {
     const MapPoint* p = m.point(vid);
     if (p == nullptr || !std::binary_search(p->observers.begin(), p->observers.end(), id)) continue;
     ++r.observed;
-    if (static_cast<int>(p->observers.size()) - 1 >= kRedundancyObservers) ++r.redundant;
+    if (static_cast<int>(p->observers.size()) - 1 >= min_other_observers) ++r.redundant;
   }
   return r;
 }
 
 bool IsRedundant(const MapData& m, KeyframeId id, const MapperOptions& options) {
-  const Redundancy r = MeasureRedundancy(m, id);
+  const Redundancy r = MeasureRedundancy(m, id, options.keyframe_redundancy_observers);
   return r.observed > 0 && r.redundant >= options.keyframe_redundancy * r.observed;
 }
 

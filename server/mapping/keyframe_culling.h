@@ -24,19 +24,16 @@
 
 namespace m2s::slam {
 
-// A point counts towards redundancy when at least this many other keyframes observe it.
-inline constexpr int kRedundancyObservers = 3;
-
 // How many map points keyframe `id` observes, and how many of them at least
-// kRedundancyObservers other keyframes observe too.
+// `min_other_observers` other keyframes observe too.
 struct Redundancy {
   int observed = 0;
   int redundant = 0;
 };
-Redundancy MeasureRedundancy(const MapData& m, KeyframeId id);
+Redundancy MeasureRedundancy(const MapData& m, KeyframeId id, int min_other_observers);
 
-// Redundant: it observes points, and at least options.keyframe_redundancy of them are
-// redundant.
+// Redundant: it observes points, and at least options.keyframe_redundancy of them are seen by
+// options.keyframe_redundancy_observers other keyframes.
 bool IsRedundant(const MapData& m, KeyframeId id, const MapperOptions& options);
 
 // The keyframes culling examines after `newest` was mapped: its local_ba_window best covisible

@@ -74,6 +74,9 @@ Status MapperOptions::Check() const {
   if (!(keyframe_redundancy > 0.0 && keyframe_redundancy <= 1.0)) {
     return Fail(kName, "keyframe_redundancy must be in (0, 1]");
   }
+  if (keyframe_redundancy_observers < 1) {
+    return Fail(kName, "keyframe_redundancy_observers must be at least 1");
+  }
   if (max_keyframes < 2) return Fail(kName, "max_keyframes must be at least 2");
   // +inf shows every point; NaN would hide them all.
   if (!Positive(max_point_uncertainty)) {

@@ -12,9 +12,10 @@ namespace {
 
 using testing::MakeCovisibilityMap;
 
-MapperOptions WithRedundancy(double fraction) {
+MapperOptions WithRedundancy(double fraction, int other_observers = 3) {
   MapperOptions o;
   o.keyframe_redundancy = fraction;
+  o.keyframe_redundancy_observers = other_observers;
   return o;
 }
 
@@ -26,18 +27,20 @@ struct Culling {
       {0, 1, 2, 3, 4, 5}, {{20, {0, 1}}, {20, {1, 2, 4, 5}}, {20, {3, 5}}, {20, {3, 4}}}, &groups);
 };
 
-TEST(KeyframeCulling, RedundancyCountsPointsSeenByThreeOthers) {
+TEST(KeyframeCulling, RedundancyCountsPointsSeenByEnoughOthers) {
   const Culling c;
-  const Redundancy two = MeasureRedundancy(c.map, 2);
+  const Redundancy two = MeasureRedundancy(c.map, 2, 3);
   EXPECT_EQ(two.observed, 20);
   EXPECT_EQ(two.redundant, 20);
-  const Redundancy four = MeasureRedundancy(c.map, 4);
+  const Redundancy four = MeasureRedundancy(c.map, 4, 3);
   EXPECT_EQ(four.observed, 40);
   EXPECT_EQ(four.redundant, 20);  // group 3 has one other observer
-  const Redundancy three = MeasureRedundancy(c.map, 3);
+  EXPECT_EQ(MeasureRedundancy(c.map, 4, 1).redundant, 40);
+  EXPECT_EQ(MeasureRedundancy(c.map, 4, 4).redundant, 0);  // group 1 has three others
+  const Redundancy three = MeasureRedundancy(c.map, 3, 3);
   EXPECT_EQ(three.observed, 40);
   EXPECT_EQ(three.redundant, 0);
-  EXPECT_EQ(MeasureRedundancy(c.map, 99).observed, 0);  // no such keyframe
+  EXPECT_EQ(MeasureRedundancy(c.map, 99, 3).observed, 0);  // no such keyframe
 }
 
 TEST(KeyframeCulling, RedundantWhenTheFractionIsReached) {
@@ -46,6 +49,10 @@ TEST(KeyframeCulling, RedundantWhenTheFractionIsReached) {
   EXPECT_FALSE(IsRedundant(c.map, 4, WithRedundancy(1.0)));  // half of them
   EXPECT_TRUE(IsRedundant(c.map, 4, WithRedundancy(0.5)));
   EXPECT_FALSE(IsRedundant(c.map, 3, WithRedundancy(0.1)));
+  // Group 1's points have three other observers: not enough when more are asked for.
+  EXPECT_FALSE(IsRedundant(c.map, 2, WithRedundancy(1.0, 4)));
+  EXPECT_FALSE(IsRedundant(c.map, 2, MapperOptions()));  // the default asks for 20
+  EXPECT_TRUE(IsRedundant(c.map, 4, WithRedundancy(1.0, 1)));
   const MapData empty = MakeCovisibilityMap({0, 1}, {});
   EXPECT_FALSE(IsRedundant(empty, 1, WithRedundancy(0.1)));  // observes nothing
 }

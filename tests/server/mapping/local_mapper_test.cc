@@ -1,7 +1,8 @@
 // LocalMapper on exact synthetic data: a sequence of keyframes along a circle in a point room
 // is inserted, triangulated and bundle adjusted into a consistent map close to the truth; on a
 // line of keyframes with known observers, Process culls exactly the keyframes whose points
-// enough others see, one at a time, and holds the keyframes outside its window fixed.
+// enough others see (as many as the option asks for), one at a time, and holds the keyframes
+// outside its window fixed.
 #include "mapping/local_mapper.h"
 
 #include <algorithm>
@@ -154,7 +155,8 @@ struct Line {
 
 TEST(LocalMapper, ProcessCullsTheKeyframesOthersSeeWellEnoughOneAtATime) {
   Line line;
-  const Options options;  // keyframe_redundancy 1.0: every point seen by 3 others
+  Options options;  // keyframe_redundancy 1.0: every point seen by 3 others
+  options.mapper.keyframe_redundancy_observers = 3;
   LocalMapper mapper(options.measurement(), options.mapper, options.drift, &line.map);
   const Pose3 first_before =
       line.map.Read([](const MapData& m) { return m.keyframe(0)->world_from_camera; });
@@ -181,6 +183,31 @@ TEST(LocalMapper, ProcessCullsTheKeyframesOthersSeeWellEnoughOneAtATime) {
       EXPECT_LT((pose->translation() - line.PoseOf(k).translation()).norm(), 1e-6) << k;
     }
   });
+}
+
+TEST(LocalMapper, KeyframesStayUntilTheirPointsHaveEnoughOtherObservers) {
+  // The 60 shared points have 13 observers after the newest keyframe. Asking for 8 others,
+  // culling (newest neighbour first) removes 11, 10, 9, 8 and 7, after which each of them
+  // has 7 others; 5 and 6 keep their own points.
+  Line eight;
+  Options options;
+  options.mapper.keyframe_redundancy_observers = 8;
+  LocalMapper mapper(options.measurement(), options.mapper, options.drift, &eight.map);
+  mapper.Process(eight.newest);
+  std::vector<KeyframeId> kept;
+  eight.map.Read([&](const MapData& m) {
+    for (const auto& [id, kf] : m.keyframes()) kept.push_back(id);
+    ExpectConsistent(m);
+  });
+  EXPECT_EQ(kept, (std::vector<KeyframeId>{0, 1, 2, 3, 4, 5, 6, 12}));
+  EXPECT_EQ(mapper.stats().keyframes_culled, 5);
+  // The default asks for 20 others: all 13 keyframes stay.
+  Line all;
+  const Options defaults;
+  LocalMapper keeper(defaults.measurement(), defaults.mapper, defaults.drift, &all.map);
+  keeper.Process(all.newest);
+  EXPECT_EQ(keeper.stats().keyframes_culled, 0);
+  EXPECT_EQ(all.map.Read([](const MapData& m) { return m.keyframes().size(); }), 13u);
 }
 
 TEST(LocalMapper, NothingIsCulledWhileTheMapIsYoung) {

@@ -64,6 +64,8 @@ TEST(Options, MapperRules) {
   ExpectRefused<O>([](O* o) { o->num_ba_threads = 0; }, "num_ba_threads");
   ExpectRefused<O>([](O* o) { o->keyframe_redundancy = 0.0; }, "keyframe_redundancy");
   ExpectRefused<O>([](O* o) { o->keyframe_redundancy = 1.01; }, "keyframe_redundancy");
+  ExpectRefused<O>([](O* o) { o->keyframe_redundancy_observers = 0; },
+                   "keyframe_redundancy_observers");
   ExpectRefused<O>([](O* o) { o->max_keyframes = 1; }, "max_keyframes");
   ExpectRefused<O>([](O* o) { o->max_point_uncertainty = 0.0; }, "max_point_uncertainty");
   ExpectRefused<O>([](O* o) { o->max_point_uncertainty = kNan; }, "max_point_uncertainty");

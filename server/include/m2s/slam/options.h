@@ -85,10 +85,16 @@ struct MapperOptions {
   int local_ba_max_points = 2000;
   // Threads Ceres may use in bundle adjustment (the initial two-view one too).
   int num_ba_threads = 1;
-  // A keyframe is redundant when this fraction of its points is seen by >= 3 other keyframes
-  // (1.0: only fully redundant ones; with exact association every keyframe adds constraints,
-  // and culling at ORB-SLAM2's 0.9 costs accuracy under noise: docs/results/slam_core.md).
+  // A keyframe is redundant when this fraction of its points is seen by at least
+  // keyframe_redundancy_observers other keyframes (1.0: only fully redundant ones; with exact
+  // association every keyframe adds constraints, and culling at ORB-SLAM2's 0.9 costs
+  // accuracy under noise: docs/results/slam_core.md).
   double keyframe_redundancy = 1.0;
+  // Each observation of a point under pixel noise narrows it (n observations: sigma / sqrt(n));
+  // a keyframe is given up only once its points have this many other observers, where one
+  // more changes a point's sigma by a few percent (20: 2.5 %). ORB-SLAM2's 3 discards the
+  // keyframes that average the noise of sparse views: docs/design/map_quality.md.
+  int keyframe_redundancy_observers = 20;
   // Bound on the map (oldest keyframes are culled beyond it).
   int max_keyframes = 2000;
   // A point is well constrained when the standard deviation of its position along its least
