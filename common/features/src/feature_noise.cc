@@ -81,6 +81,11 @@ void ApplyWrongIds(const FeatureNoiseOptions& o, uint32_t num_vertices, uint64_t
   auto taken = [&](VertexId id) {
     return std::binary_search(frame_ids.begin(), frame_ids.end(), id) || handed_out.count(id) != 0;
   };
+  // Once fewer than 1/8 of the ids are free (a view that sees most of the scene), the free ids
+  // are listed once, in increasing order, and each replacement takes the k-th of them (the same
+  // id the scan for the k-th free id gives, without a scan of every id per feature).
+  std::vector<VertexId> free_list;
+  bool listed = false;
   size_t kept = 0;
   std::vector<ProjectedVertex> replaced;
   for (size_t i = 0; i < features->size(); ++i) {
@@ -100,10 +105,16 @@ void ApplyWrongIds(const FeatureNoiseOptions& o, uint32_t num_vertices, uint64_t
       } while (taken(id));  // expected fewer than 8 draws
     } else {
       // Few free ids: pick the k-th free one directly.
-      uint32_t k = rng.Below(static_cast<uint32_t>(free_ids));
-      for (id = 0;; ++id) {
-        if (!taken(id) && k-- == 0) break;
+      if (!listed) {
+        free_list.reserve(free_ids);
+        for (VertexId v = 0; v < num_vertices; ++v) {
+          if (!taken(v)) free_list.push_back(v);
+        }
+        listed = true;
       }
+      const uint32_t k = rng.Below(static_cast<uint32_t>(free_ids));
+      id = free_list[k];
+      free_list.erase(free_list.begin() + k);
     }
     handed_out.insert(id);
     f.id = id;
