@@ -12,6 +12,7 @@
 //                                    # one scene file with its own trajectory (the large-world
 //                                    # row; the projector uses every core)
 //   bench_scenes ... --dump out/     # each run's aligned estimate and ground truth (TUM)
+//   bench_scenes ... --verbose       # the SLAM system's debug log (initialisation refusals)
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
@@ -25,6 +26,7 @@
 #include <nlohmann/json.hpp>
 
 #include "accuracy_run.h"
+#include "m2s/common/logging.h"
 #include "m2s/common/scene.h"
 #include "m2s/common/trajectory.h"
 #include "m2s/slam/options.h"
@@ -197,7 +199,11 @@ int main(int argc, char** argv) {
   app.add_option("--dump", dump_dir,
                  "write each run's aligned estimate and ground truth there as TUM "
                  "(<scene>_<motion>_<mode>_estimate.tum, _truth.tum)");
+  bool verbose = false;
+  app.add_flag("--verbose", verbose,
+               "log the SLAM system's debug messages (initialisation refusals, lost frames)");
   CLI11_PARSE(app, argc, argv);
+  if (verbose) m2s::SetMinLogLevel(m2s::LogLevel::kDebug);
 
   if (!mesh.empty()) {
     m2s::bench::RunConfig config;
