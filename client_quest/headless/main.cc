@@ -106,6 +106,10 @@ int main(int argc, char** argv) {
                  "On-device localisation method: vertex_slam (built in) or a plug-in's name or "
                  "path");
   app.add_option("--method-config", method_config, "The plug-in's options (JSON object file)");
+  bool verbose = false;
+  app.add_flag("--verbose", verbose,
+               "--on-device: log the SLAM system's info and debug messages (initialisation, "
+               "refusals, drift checks)");
   CLI11_PARSE(app, argc, argv);
   options.send_budget = options.server.slam.feature_budget = budget;
 
@@ -156,7 +160,7 @@ int main(int argc, char** argv) {
   options.on_device = lcm_url.empty();
   if (!lcm_url.empty()) options.lcm_url = lcm_url;
   options.progress = isatty(STDERR_FILENO) != 0;
-  m2s::SetMinLogLevel(m2s::LogLevel::kWarning);
+  m2s::SetMinLogLevel(verbose ? m2s::LogLevel::kDebug : m2s::LogLevel::kWarning);
 
   // ORB keypoints are not exact: the back end assumes their measured noise.
   if (options.front_end == "orb") options.server.slam.pixel_sigma = m2s::headless::kOrbPixelSigma;

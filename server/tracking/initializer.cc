@@ -27,6 +27,14 @@ using RefusalKind = TwoViewRefusal::Kind;
 // reference reaches this fraction of the bound, and at least this often.
 constexpr double kRetryParallaxFraction = 0.8;
 constexpr double kMaxInitRetryDelayS = 0.1;
+// Second opinions (ReconstructTwoView) refuse at most this many attempts per map: more baseline
+// usually narrows a valley of motions, but bunched dense objects keep one for seconds (the
+// scanned-objects head motion: 15 s), and the views a few attempts later may be weaker still
+// (a drone leaving its first view); after them, the motion RANSAC picks is taken.
+constexpr int kMaxSecondOpinionRefusals = 3;
+// and they are asked only when the motion's rotation deviation exceeds this fraction of
+// InitializerOptions::max_rotation_sigma_deg.
+constexpr double kSecondOpinionSigmaFraction = 0.7;
 // Two candidate motions are the same solution when they differ by less than this many times the
 // largest standard deviations the motion may have (InitializerOptions::max_*_sigma_deg).
 constexpr double kDistinctSigmas = 2.0;
@@ -110,6 +118,11 @@ bool WellDetermined(const std::optional<MotionUncertainty>& u, const Initializer
          u->direction_rad <= DegToRad(options.max_direction_sigma_deg);
 }
 
+bool DistinctRotations(const Pose3& a, const Pose3& b, const InitializerOptions& options) {
+  return RotationAngle(a.rotation().conjugate() * b.rotation()) >
+         kDistinctSigmas * DegToRad(options.max_rotation_sigma_deg);
+}
+
 bool DistinctMotions(const Pose3& a, const Pose3& b, const InitializerOptions& options) {
   const double rotation = RotationAngle(a.rotation().conjugate() * b.rotation());
   const double direction = std::acos(
@@ -165,7 +178,8 @@ MotionCheck CheckMotion(const MeasurementModel& model, const Matches& m,
 // ReconstructTwoView without the boundary that turns OpenCV's exceptions into a refusal.
 std::optional<TwoViewReconstruction> ReconstructTwoViewUnguarded(
     const MeasurementModel& model, const InitializerOptions& options, const SortedFeatures& view0,
-    const SortedFeatures& view1, TwoViewRefusal* refusal, double* median_parallax_deg) {
+    const SortedFeatures& view1, TwoViewRefusal* refusal, double* median_parallax_deg,
+    bool second_opinions) {
   auto fail = [refusal](RefusalKind kind,
                         const std::string& message) -> std::optional<TwoViewReconstruction> {
     if (refusal) *refusal = {kind, message};
@@ -235,12 +249,41 @@ std::optional<TwoViewReconstruction> ReconstructTwoViewUnguarded(
     }
     return motions;
   };
+  // Second opinions: the essential matrices of two other robust estimators (least median of
+  // squares; OpenCV's USAC with local optimisation), decomposed. Where the views leave a valley
+  // of motions that fit them within the noise, each estimator settles somewhere in it, often
+  // far from RANSAC's pick (a hand-held camera circling a compact object: 6.2 degrees of
+  // parallax picked where the truth has 1.8, and a 0.9-degree motion fitting as well).
+  std::vector<std::pair<Eigen::Matrix3d, Eigen::Vector3d>> opinions;
+  bool opinions_done = false;
+  auto other_estimates = [&]() -> const std::vector<std::pair<Eigen::Matrix3d, Eigen::Vector3d>>& {
+    if (opinions_done) return opinions;
+    opinions_done = true;
+    for (const int method : {cv::LMEDS, cv::USAC_ACCURATE}) {
+      cv::Mat mask;
+      const cv::Mat es = cv::findEssentialMat(m.p0, m.p1, k_cv, method, 0.999, sigma, mask);
+      // Several solutions come stacked, 3 rows each.
+      for (int row = 0; row + 3 <= es.rows && es.cols == 3; row += 3) {
+        cv::Mat r1_cv, r2_cv, t_cv;
+        cv::decomposeEssentialMat(es.rowRange(row, row + 3), r1_cv, r2_cv, t_cv);
+        Eigen::Matrix3d r1, r2;
+        Eigen::Vector3d t;
+        cv::cv2eigen(r1_cv, r1);
+        cv::cv2eigen(r2_cv, r2);
+        cv::cv2eigen(t_cv, t);
+        opinions.insert(opinions.end(), {{r1, t}, {r1, -t}, {r2, t}, {r2, -t}});
+      }
+    }
+    return opinions;
+  };
   // Motions of one model, checked by triangulation; the best must be unique, among the motions
-  // of both models. When the preferred model is ambiguous (a homography fitted to a non-planar
-  // scene at low parallax has two valid decompositions), the other model is tried.
+  // of both models and the second opinions. When the preferred model is ambiguous (a homography
+  // fitted to a non-planar scene at low parallax has two valid decompositions), the other model is
+  // tried.
   struct Refused {
     RefusalKind kind = RefusalKind::kNoModel;
     std::string reason;
+    bool by_second_opinion = false;
   };
   auto try_model = [&](bool homography, Refused* refused) -> std::optional<MotionCheck> {
     const cv::Mat& mask = homography ? h_mask : e_mask;
@@ -281,16 +324,25 @@ std::optional<TwoViewReconstruction> ReconstructTwoViewUnguarded(
     }
     // A motion of the other model that differs from the best and fits these inliers about as
     // well (a likelihood-ratio test on the truncated reprojection costs) is a second solution,
-    // a plane's twin: the views do not decide between them, however exact the data.
-    for (const auto& [r, t] : motions_of(!homography)) {
-      if (t.norm() < 1e-12) continue;
-      const Pose3 other(r, t.normalized());
-      if (!DistinctMotions(other, checks[0].camera1_from_camera0, options)) continue;
-      if (CheckMotion(model, m, subset, r, t.normalized()).cost - checks[0].cost <
-          kChi2FiveDof999) {
-        *refused = {RefusalKind::kWeakGeometry, "two distinct motions explain the views"};
-        return std::nullopt;
-      }
+    // a plane's twin: the views do not decide between them, however exact the data. A second
+    // opinion is such a solution when its rotation differs (a valley trades rotation against
+    // translation; its translation direction alone may differ at low parallax).
+    auto twin = [&](const std::vector<std::pair<Eigen::Matrix3d, Eigen::Vector3d>>& others,
+                    bool rotation_only) {
+      return std::any_of(others.begin(), others.end(), [&](const auto& motion) {
+        const auto& [r, t] = motion;
+        if (t.norm() < 1e-12) return false;
+        const Pose3 other(r, t.normalized());
+        const bool distinct =
+            rotation_only ? DistinctRotations(other, checks[0].camera1_from_camera0, options)
+                          : DistinctMotions(other, checks[0].camera1_from_camera0, options);
+        return distinct && CheckMotion(model, m, subset, r, t.normalized()).cost - checks[0].cost <
+                               kChi2FiveDof999;
+      });
+    };
+    if (twin(motions_of(!homography), false)) {
+      *refused = {RefusalKind::kWeakGeometry, "two distinct motions explain the views"};
+      return std::nullopt;
     }
     // Association is by id, so nearly every match is a true correspondence: a motion that
     // leaves many of them unexplained fits only part of the scene (a dense cluster that a wrong
@@ -318,6 +370,18 @@ std::optional<TwoViewReconstruction> ReconstructTwoViewUnguarded(
       refused->reason = "too little parallax";
       return std::nullopt;
     }
+    // A loosely determined rotation: ask the other estimators.
+    if (second_opinions) {
+      const std::optional<MotionUncertainty> u = TwoViewMotionUncertainty(
+          model.camera, model.pixel_sigma, checks[0].camera1_from_camera0, checks[0].points);
+      if (u && u->rotation_rad > kSecondOpinionSigmaFraction *
+                                     DegToRad(options.max_rotation_sigma_deg) &&
+          twin(other_estimates(), true)) {
+        *refused = {RefusalKind::kWeakGeometry,
+                    "another estimator's motion explains the views as well", true};
+        return std::nullopt;
+      }
+    }
     return std::move(checks[0]);
   };
   Refused refused_preferred, refused_other;
@@ -330,7 +394,9 @@ std::optional<TwoViewReconstruction> ReconstructTwoViewUnguarded(
   if (!chosen) {
     const Refused& refused =
         refused_other.kind == RefusalKind::kWeakGeometry ? refused_other : refused_preferred;
-    return fail(refused.kind, refused.reason);
+    fail(refused.kind, refused.reason);
+    if (refusal) refusal->by_second_opinion = refused.by_second_opinion;
+    return std::nullopt;
   }
   const MotionCheck& best = *chosen;
 
@@ -362,9 +428,11 @@ std::optional<TwoViewReconstruction> ReconstructTwoViewUnguarded(
 
 std::optional<TwoViewReconstruction> ReconstructTwoView(
     const MeasurementModel& model, const InitializerOptions& options, const SortedFeatures& view0,
-    const SortedFeatures& view1, TwoViewRefusal* refusal, double* median_parallax_deg) {
+    const SortedFeatures& view1, TwoViewRefusal* refusal, double* median_parallax_deg,
+    bool second_opinions) {
   try {
-    return ReconstructTwoViewUnguarded(model, options, view0, view1, refusal, median_parallax_deg);
+    return ReconstructTwoViewUnguarded(model, options, view0, view1, refusal, median_parallax_deg,
+                                       second_opinions);
   } catch (const cv::Exception& e) {
     // Degenerate input (OpenCV asserts on it): a refused attempt, never a thrown frame.
     M2S_LOG(kWarning) << "two-view reconstruction: OpenCV error: " << e.what();
@@ -394,9 +462,11 @@ std::optional<InitialMap> Initializer::Process(int64_t seq, double timestamp,
   TwoViewRefusal refusal;
   double parallax = 0.0;
   auto two_view =
-      ReconstructTwoView(model_, options_, reference_->features, features, &refusal, &parallax);
+      ReconstructTwoView(model_, options_, reference_->features, features, &refusal, &parallax,
+                         second_opinion_refusals_ < kMaxSecondOpinionRefusals);
   if (!two_view) {
     last_failure_ = refusal.message;
+    if (refusal.by_second_opinion) ++second_opinion_refusals_;
     const bool too_few_shared = refusal.kind == RefusalKind::kTooFewShared;
     // Refusals that ran the RANSACs mostly mean "not enough parallax yet": retry when it may be.
     if (!too_few_shared && refusal.kind != RefusalKind::kTooLittleMotion) {
@@ -484,6 +554,7 @@ std::optional<InitialMap> Initializer::Process(int64_t seq, double timestamp,
                  << (map.used_homography ? "homography" : "essential") << ", median parallax "
                  << two_view->median_parallax_deg << " deg)";
   reference_.reset();
+  second_opinion_refusals_ = 0;
   return map;
 }
 

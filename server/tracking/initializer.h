@@ -55,16 +55,20 @@ struct TwoViewRefusal {
   };
   Kind kind = Kind::kNoModel;
   std::string message;
+  bool by_second_opinion = false;  // a kWeakGeometry twin found by another estimator
 };
 
 // Two-view reconstruction from matched features (matched by id). nullopt, with the reason in
 // `refusal` (optional), when the views cannot be reconstructed reliably; `median_parallax_deg`
 // (optional) receives the parallax of the best motion when one was triangulated (else 0). Points
 // need half the model's min_triangulation_parallax_deg (the initial map is refined by a full bundle
-// adjustment).
+// adjustment). With `second_opinions`, the essential matrices of two more robust estimators
+// are candidate twins too: a valley of motions that fit within the noise refuses the views
+// (kWeakGeometry) where RANSAC alone would have picked a point of it.
 std::optional<TwoViewReconstruction> ReconstructTwoView(
     const MeasurementModel& model, const InitializerOptions& options, const SortedFeatures& view0,
-    const SortedFeatures& view1, TwoViewRefusal* refusal, double* median_parallax_deg = nullptr);
+    const SortedFeatures& view1, TwoViewRefusal* refusal, double* median_parallax_deg = nullptr,
+    bool second_opinions = true);
 
 struct InitialFrame {
   int64_t seq = 0;
@@ -90,7 +94,10 @@ class Initializer {
   // Feeds one valid frame. Returns the initial map once two frames (the reference and this
   // one) reconstruct; otherwise nullopt (last_failure() says why).
   std::optional<InitialMap> Process(int64_t seq, double timestamp, const SortedFeatures& features);
-  void Reset() { reference_.reset(), frames_since_reference_ = 0, next_attempt_time_.reset(); }
+  void Reset() {
+    reference_.reset(), frames_since_reference_ = 0, next_attempt_time_.reset();
+    second_opinion_refusals_ = 0;
+  }
   const std::string& last_failure() const { return last_failure_; }
   // The reference frame's seq, when one is held.
   std::optional<int64_t> reference_seq() const {
@@ -104,6 +111,7 @@ class Initializer {
   std::optional<InitialFrame> reference_;
   int frames_since_reference_ = 0;
   std::optional<double> next_attempt_time_;  // no full attempt before this capture time
+  int second_opinion_refusals_ = 0;          // since the last map or Reset
   std::string last_failure_;
 };
 

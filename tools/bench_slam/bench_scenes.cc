@@ -11,6 +11,7 @@
 //   bench_scenes --mesh dragons.ply --trajectory walk.tum --name large-world
 //                                    # one scene file with its own trajectory (the large-world
 //                                    # row; the projector uses every core)
+//   bench_scenes ... --motions-only --write-motion out/   # the motions and composed scenes
 //   bench_scenes ... --dump out/     # each run's aligned estimate and ground truth (TUM)
 //   bench_scenes ... --verbose       # the SLAM system's debug log (initialisation refusals)
 #include <algorithm>
@@ -28,6 +29,7 @@
 #include "accuracy_run.h"
 #include "m2s/common/logging.h"
 #include "m2s/common/scene.h"
+#include "m2s/common/scene_io.h"
 #include "m2s/common/trajectory.h"
 #include "m2s/slam/options.h"
 #include "scene_corpus.h"
@@ -186,7 +188,8 @@ int main(int argc, char** argv) {
   app.add_flag("--list", list, "print the scenes and exit");
   app.add_flag("--motions-only", motions_only, "generate (and write) the motions, run nothing");
   app.add_option("--write-motion", motion_dir,
-                 "write each generated motion there as TUM (<scene>_<motion>.tum)");
+                 "write each generated motion there as TUM (<scene>_<motion>.tum) and each "
+                 "composed scene as PLY (<scene>.ply, the same vertex ids)");
   app.add_option("--json", json_path, "also write the rows as JSON to this file");
   std::string mesh, trajectory_path, name = "scene";
   auto* mesh_option = app.add_option(
@@ -255,6 +258,13 @@ int main(int argc, char** argv) {
         std::printf("  %-24s x%-3d %8zu vertices\n", name.c_str(), count.first, count.second);
       }
       continue;
+    }
+    if (!motion_dir.empty()) {
+      const std::string path = motion_dir + "/" + spec.name + ".ply";
+      if (m2s::Status s = m2s::WriteScenePly(path, composed->scene); !s) {
+        std::cerr << "bench_scenes: " << s.message() << "\n";
+        return 1;
+      }
     }
     for (const std::string& motion : motions) {
       m2s::Expected<m2s::Trajectory> trajectory =

@@ -1,10 +1,11 @@
 // Two-view initialisation on hard geometry, checked against the known motion: a planar wall,
 // sparse points, a dense cluster with a few sparse points, points bunched in a small distant
-// part of the image; exact and noisy projections. The initialiser must either give the true
-// motion (up to scale) or refuse; and the motion uncertainty it gates on must match an
-// independent numerical computation.
+// part of the image, a camera orbiting a compact object; exact and noisy projections. The
+// initialiser must either give the true motion (up to scale) or refuse; and the motion uncertainty
+// it gates on must match an independent numerical computation.
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -233,6 +234,75 @@ TEST(InitializerGeometry, ClusterSequenceInitialisesLaterWithTheTrueMotion) {
   const MotionError e = ErrorOf(map->second.world_from_camera, truth);
   EXPECT_LT(e.rotation_deg, 1e-3);
   EXPECT_LT(e.direction_deg, 1e-2);
+}
+
+// A hand-held camera circling a compact object keeps it in the middle of the view. Rotation
+// and translation trade against each other within the noise, and RANSAC's pick in that valley
+// can be degrees off (in a composed room: 6.2 degrees of parallax picked where the truth has
+// 1.8, and an initial map that ruins the run). The scene: a 40 cm object 1 m ahead, two smaller
+// ones further off, the 8 far corners of a room.
+std::vector<Eigen::Vector3d> CompactObjectsScene(Uniform* u) {
+  std::vector<Eigen::Vector3d> points;
+  const struct {
+    Eigen::Vector3d centre;
+    double radius;
+    size_t count;
+  } blobs[] = {
+      {{0.0, 0.05, 1.0}, 0.2, 600}, {{-0.6, 0.3, 1.6}, 0.15, 200}, {{0.5, -0.2, 2.2}, 0.2, 100}};
+  for (const auto& blob : blobs) {
+    for (size_t n = 0; n < blob.count;) {
+      const Eigen::Vector3d d((*u)(-1, 1), (*u)(-1, 1), (*u)(-1, 1));
+      if (d.norm() > 1.0) continue;
+      points.push_back(blob.centre + blob.radius * d);
+      ++n;
+    }
+  }
+  for (const double x : {-2.0, 2.0})
+    for (const double y : {-1.2, 1.4})
+      for (const double z : {2.5, 4.0}) points.emplace_back(x, y, z);
+  return points;
+}
+
+// The camera orbits the object at 0.15-0.4 m/s, 30 fps, 0.5 px noise and 1 % of the features at
+// another feature's place; frames go through the initialiser until it makes a map. The map's
+// motion must be within three of the gate's standard deviations of the truth. Measured over 20
+// orbits: 19 maps, worst 0.94 degrees of rotation; without the second opinions of the twin
+// check, worst 1.97 degrees (3 maps over 1 degree).
+TEST(InitializerGeometry, OrbitAroundACompactObjectInitialisesWithTheTrueMotion) {
+  Options options;
+  options.camera = Camera();
+  const InitializerOptions& gate = options.initializer;
+  int made = 0;
+  MotionError worst{0.0, 0.0};
+  for (uint64_t trial = 0; trial < 20; ++trial) {
+    Uniform u(900 + trial);
+    const std::vector<Eigen::Vector3d> points = CompactObjectsScene(&u);
+    Initializer init(options.measurement(), gate, 1);
+    std::optional<InitialMap> map;
+    std::vector<Pose3> truths;
+    const double speed = u(0.15, 0.4), lift = u(-0.05, 0.05);
+    for (int frame = 0; frame < 90 && !map; ++frame) {
+      const double angle = speed * frame / 30.0;  // an orbit of radius 1 m about the object
+      truths.emplace_back(Eigen::Quaterniond(Eigen::AngleAxisd(-angle, Eigen::Vector3d::UnitY())),
+                          Eigen::Vector3d(std::sin(angle), lift * angle, 1.0 - std::cos(angle)));
+      SortedFeatures view = Project(options.camera, truths.back(), points, 0.5, &u);
+      for (size_t i = 0; i < view.size(); ++i) {
+        if (u(0.0, 1.0) < 0.005) std::swap(view.uvs[i], view.uvs[(i * 7919) % view.size()]);
+      }
+      map = init.Process(frame, frame / 30.0, view);
+    }
+    if (!map) continue;
+    ++made;
+    const Pose3 truth = truths[map->first.seq].Inverse() * truths[map->second.seq];
+    const MotionError e = ErrorOf(map->second.world_from_camera, truth);
+    worst.rotation_deg = std::max(worst.rotation_deg, e.rotation_deg);
+    worst.direction_deg = std::max(worst.direction_deg, e.direction_deg);
+  }
+  std::printf("orbits: %d of 20 initialised, worst %.3f degrees of rotation, %.3f of direction\n",
+              made, worst.rotation_deg, worst.direction_deg);
+  EXPECT_GE(made, 15);
+  EXPECT_LT(worst.rotation_deg, 3.0 * gate.max_rotation_sigma_deg);
+  EXPECT_LT(worst.direction_deg, 3.0 * gate.max_direction_sigma_deg);
 }
 
 // The motion's standard deviations against an independent computation: the full Jacobian of
