@@ -6,7 +6,8 @@
 // Pure rotation or too little parallax: no map (keep waiting, never a broken map). The views
 // must also determine the motion, not merely fit it (docs/design/two_view_initialisation.md):
 // the chosen motion must explain nearly all shared features (association is by id); no distinct
-// motion of the other model may fit about as well (a plane's twin); and the motion's standard
+// motion of the other model may fit about as well (a plane's twin), nor, for a loosely determined
+// rotation, a motion of two other estimators (a valley of motions); and the motion's standard
 // deviations for pixel_sigma noise (TwoViewMotionUncertainty) must be within
 // InitializerOptions' bounds, before and after the bundle adjustment. Bunched or distant points
 // fail that with exact data too (TwoViewRefusal::Kind::kWeakGeometry), and the initialiser
