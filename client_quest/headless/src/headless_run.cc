@@ -1,7 +1,9 @@
 #include "m2s/headless/headless_run.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <deque>
 #include <iostream>
 #include <optional>
 #include <thread>
@@ -205,11 +207,18 @@ Expected<HeadlessResult> RunHeadless(const HeadlessOptions& options) {
   auto next_progress = start;
   const auto period = std::chrono::duration<double>(1.0 / options.fps);
   int64_t last_seq = 0;
-  // With --fast, frame k + 1 is made while the server tracks frame k (the front end does not
-  // depend on the answer), and sent once frame k's pose is back, as without the overlap.
+  // With --fast, the front end runs ahead of the server (it does not depend on the answers):
+  // frame k + 1 is made while the server tracks frame k, and sent as soon as at most
+  // `in_flight` frames are unanswered. The in-process server queues up to queue_capacity frames
+  // per session and drops only beyond that, so it sees every frame, in order, and tracks each
+  // as without the overlap (a remote server's queue is unknown: one frame at a time).
+  const size_t in_flight =
+      options.on_device ? static_cast<size_t>(std::clamp(options.server.queue_capacity, 1, 2)) : 1;
+  std::deque<int64_t> unanswered;
   std::optional<Expected<wire::FeatureFrame>> ahead;
   reporting::FrontEndTime ahead_time;
-  for (size_t k = 0; k < num_frames; ++k) {
+  bool no_answer = false;
+  for (size_t k = 0; k < num_frames && !no_answer; ++k) {
     if (!options.fast) {
       const auto due = start + std::chrono::duration_cast<Clock::duration>(period * k);
       const auto now = Clock::now();
@@ -229,19 +238,25 @@ Expected<HeadlessResult> RunHeadless(const HeadlessOptions& options) {
       frame = prepare(k, &time);
     }
     if (!frame) return frame.status();
+    while (options.fast && unanswered.size() >= in_flight) {
+      if (!session.WaitForPose(unanswered.front(), options.pose_timeout_s) &&
+          session.Counters().poses_received == 0) {
+        no_answer = true;  // nobody answers; reported below
+        break;
+      }
+      unanswered.pop_front();
+    }
+    if (no_answer) break;
     auto seq = session.Send(std::move(*frame));
     if (!seq) return seq.status();
     last_seq = *seq;
+    if (options.fast) unanswered.push_back(*seq);
     time.seq = *seq;
     info.front_end_times.push_back(time);
     if (options.on_frame_sent) options.on_frame_sent(static_cast<int64_t>(k));
     if (options.fast && k + 1 < num_frames) {
       ahead_time = reporting::FrontEndTime{};
       ahead = prepare(k + 1, &ahead_time);
-    }
-    if (options.fast && !session.WaitForPose(last_seq, options.pose_timeout_s) &&
-        session.Counters().poses_received == 0) {
-      break;  // nobody answers; reported below
     }
     if (options.progress && Clock::now() >= next_progress) {
       const client::ClientCounters c = session.Counters();

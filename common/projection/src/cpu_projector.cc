@@ -107,6 +107,47 @@ void CpuProjector::Impl::TransformChunk(int worker) {
   }
 }
 
+void CpuProjector::Impl::SelectTriangles(int worker, int num_workers) {
+  WorkerScratch& s = scratch[worker];
+  s.survivors.clear();
+  const size_t groups = visible_triangle_groups.size();
+  const size_t begin = groups * worker / num_workers, end = groups * (worker + 1) / num_workers;
+  for (size_t k = begin; k < end; ++k) {
+    const internal::ScreenBox& box = triangle_footprints[k];
+    const internal::CullGroup& group = triangle_groups[visible_triangle_groups[k]];
+    const size_t n = group.end - group.begin;
+    if (s.keep.size() < n) s.keep.resize(n);
+    const uint32_t* first = &triangles[3 * size_t{group.begin}];
+    if (GroupInFront(box)) {
+      internal::MayCoverPixelCentres(first, n, all_cells.data(), s.keep.data());
+    } else {
+      internal::MayCoverPixelCentresOrCrossNear(first, n, all_cells.data(), all_depth.data(),
+                                                constants.near, s.keep.data());
+    }
+    const auto survivors_begin = static_cast<uint32_t>(s.survivors.size());
+    s.survivors.resize(s.survivors.size() + n + 1);
+    uint32_t* out = s.survivors.data() + survivors_begin;
+    size_t count = 0;
+    size_t i = 0;
+    for (; i + 8 <= n; i += 8) {  // most of a dense scan's triangles cover no pixel centre
+      uint64_t word;
+      std::memcpy(&word, s.keep.data() + i, sizeof(word));
+      if (word == 0) continue;
+      for (size_t j = i; j < i + 8; ++j) {
+        out[count] = group.begin + static_cast<uint32_t>(j);
+        count += s.keep[j];
+      }
+    }
+    for (; i < n; ++i) {
+      out[count] = group.begin + static_cast<uint32_t>(i);
+      count += s.keep[i];
+    }
+    s.survivors.resize(survivors_begin + count);
+    triangle_survivors[k] = {worker, survivors_begin,
+                             survivors_begin + static_cast<uint32_t>(count)};
+  }
+}
+
 void CpuProjector::Impl::RasterizeBand(int band, int num_bands) {
   const int height = depth_buffer.height();
   const int row_begin = static_cast<int>(static_cast<int64_t>(height) * band / num_bands);
@@ -133,43 +174,14 @@ void CpuProjector::Impl::RasterizeBand(int band, int num_bands) {
         continue;
       }
     }
-    const internal::CullGroup& group = triangle_groups[visible_triangle_groups[k]];
-    const bool in_front =
-        box.bounded && box.min_depth >= camera.near && box.max_depth <= camera.far;
-    RasterizeGroup(group, in_front, band, b);
-  }
-}
-
-void CpuProjector::Impl::RasterizeGroup(const internal::CullGroup& group, bool in_front, int band,
-                                        const Band& b) {
-  AlignedVector<uint8_t>& keep = scratch[band].keep;
-  const size_t n = group.end - group.begin;
-  if (keep.size() < n) keep.resize(n);
-  const uint32_t* first = &triangles[3 * size_t{group.begin}];
-  if (in_front) {
-    internal::MayCoverPixelCentres(first, n, all_cells.data(), keep.data());
-  } else {
-    internal::MayCoverPixelCentresOrCrossNear(first, n, all_cells.data(), all_depth.data(), b.near,
-                                              keep.data());
-  }
-  auto draw = [&](size_t j) {
-    if (in_front) {
-      RasterizeInFront(first + 3 * j, b);
+    const SurvivorRange& range = triangle_survivors[k];
+    const uint32_t* survivors = scratch[range.worker].survivors.data();
+    if (GroupInFront(box)) {
+      for (uint32_t i = range.begin; i < range.end; ++i)
+        RasterizeInFront(&triangles[3 * size_t{survivors[i]}], b);
     } else {
-      RasterizeTriangleAt(group.begin + j, b);
+      for (uint32_t i = range.begin; i < range.end; ++i) RasterizeTriangleAt(survivors[i], b);
     }
-  };
-  size_t i = 0;
-  for (; i + 8 <= n; i += 8) {  // most of a dense scan's triangles cover no pixel centre
-    uint64_t word;
-    std::memcpy(&word, keep.data() + i, sizeof(word));
-    if (word == 0) continue;
-    for (size_t j = i; j < i + 8; ++j) {
-      if (keep[j]) draw(j);
-    }
-  }
-  for (; i < n; ++i) {
-    if (keep[i]) draw(i);
   }
 }
 
@@ -285,6 +297,11 @@ void CpuProjector::Impl::Prepare(const Pose3& world_from_camera, const Camera& f
     if (worker < active_workers) TransformChunk(worker);
   };
   pool->Run(transform);
+  // The triangles that may cover a pixel centre, found once per group (groups split among the
+  // workers), then drawn by bands of rows (each pixel written by one worker).
+  triangle_survivors.resize(visible_triangle_groups.size());
+  auto select = [this, pool_size](int worker) { SelectTriangles(worker, pool_size); };
+  pool->Run(select);
   auto rasterize = [this, pool_size](int worker) { RasterizeBand(worker, pool_size); };
   pool->Run(rasterize);
   auto dilate = [this, pool_size](int worker) { DilateBand(worker, pool_size); };

@@ -59,6 +59,7 @@ struct CpuProjector::Impl {
     AlignedVector<float> u, v, depth;
     AlignedVector<uint8_t> visible;
     AlignedVector<uint8_t> keep;       // per triangle of a group: may cover a pixel centre
+    std::vector<uint32_t> survivors;   // the triangles kept, of the groups this worker selected
     std::vector<ProjectedVertex> out;  // grows to the chunk size + 1, never shrinks
     size_t count = 0;
     size_t tested = 0;  // vertices of the groups this worker depth-tested in the last frame
@@ -100,6 +101,13 @@ struct CpuProjector::Impl {
   // triangle groups (the latter ordered nearest first, so that hidden groups are skipped).
   std::vector<internal::ScreenBox> vertex_footprints, triangle_footprints;
   std::vector<std::pair<double, uint32_t>> triangle_order;
+  // Per visible triangle group (as visible_triangle_groups): its triangles that may cover a
+  // pixel centre, at scratch[worker].survivors[begin .. end).
+  struct SurvivorRange {
+    int worker = 0;
+    uint32_t begin = 0, end = 0;
+  };
+  std::vector<SurvivorRange> triangle_survivors;
   std::vector<size_t> visible_split, transform_split;
   std::vector<uint8_t> group_needed;
   // Balanced projection: the grid, the heaps' capacity, the grid cells each visible vertex
@@ -199,10 +207,14 @@ struct CpuProjector::Impl {
   void RasterizeTriangleAt(size_t t, const Band& band);
   // A triangle whose corners are all at depth >= near.
   void RasterizeInFront(const uint32_t* idx, const Band& band);
-  // The triangles of `group` that may cover a pixel centre (found for the whole group at once,
-  // in scratch[band].keep); `in_front`: every corner of the group lies between near and far,
-  // so no triangle needs clipping or depth checks.
-  void RasterizeGroup(const internal::CullGroup& group, bool in_front, int band, const Band& b);
+  // Every corner of the group with this footprint lies between near and far: no triangle
+  // needs clipping or depth checks.
+  bool GroupInFront(const internal::ScreenBox& box) const {
+    return box.bounded && box.min_depth >= camera.near && box.max_depth <= camera.far;
+  }
+  // Fills triangle_survivors for this worker's share of the visible triangle groups (found for
+  // a whole group at once: MayCoverPixelCentres).
+  void SelectTriangles(int worker, int num_workers);
   void TestChunk(int worker);
   // Appends the vertices of [begin, end) that pass the depth test to out[count...]; returns
   // the new count.

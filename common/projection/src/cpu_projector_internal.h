@@ -114,11 +114,12 @@ void TransformVertices(const FrameConstants& k, const float* x, const float* y, 
 
 // Pixel-centre cells of vertices in a depth buffer, for rejecting triangles that cover no
 // pixel centre with integer compares. For x = u[i] * scale_x (float, as the rasteriser
-// computes it), the cell is floor(x - 0.5) clamped to [-2, 32766], or kUnknownCell when
-// x - 0.5 is an integer or not finite; likewise y. cells[i] = cell_x | cell_y << 16 (16-bit
-// two's complement). Three corners with one known x cell (or one known y cell) lie strictly
-// between two neighbouring pixel centres (or all off the buffer on one side): the triangle
-// covers no pixel centre.
+// computes it), the cell is floor(x - 0.5) clamped to [-2, 32766], or kUnknownCell when x is
+// not finite or x - 0.5 is an integer in [-1, 32766], or within float rounding of one (about
+// 2^-24 |x|: an unknown cell only keeps a triangle for the rasteriser); likewise y. cells[i] =
+// cell_x | cell_y << 16 (16-bit two's complement). Three corners with one known x cell (or one
+// known y cell) lie strictly between two neighbouring pixel centres (or all off the buffer on one
+// side): the triangle covers no pixel centre.
 inline constexpr uint16_t kUnknownCell = 0x8000;
 void PixelCells(const float* u, const float* v, size_t n, float scale_x, float scale_y,
                 uint32_t* cells);

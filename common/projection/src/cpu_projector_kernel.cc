@@ -119,14 +119,18 @@ void TransformVertices(const FrameConstants& k, const float* __restrict x,
 
 namespace {
 
-// Branch-free (selects, no early return), so that the loop below vectorises (this file is
+// floor(x - 0.5) in float, 8 lanes at a time: x is clamped to [-1.25, 32767.25] (which
+// changes no clamped cell) and t = x + 1.5 = (x - 0.5) + 2 is floored through an int
+// conversion. t is x + 1.5 rounded; rounding is monotone and keeps integers, so floor(t) is
+// exact unless t rounds onto an integer, which reads as a pixel centre: unknown, the safe
+// answer (the triangle is drawn). Branch-free (selects, no early return; this file is
 // compiled with -fno-trapping-math, which lets the compiler evaluate both sides of a select).
-inline uint32_t PixelCell(float scaled) {
-  const double x = static_cast<double>(scaled) - 0.5;
-  const double cell = std::floor(x);
-  const bool unknown = !(std::abs(x) <= std::numeric_limits<double>::max()) || cell == x;
-  const double known = unknown ? 0.0 : std::min(std::max(cell, -2.0), 32766.0);
-  return unknown ? uint32_t{kUnknownCell} : static_cast<uint32_t>(static_cast<int>(known) & 0xFFFF);
+inline uint32_t PixelCell(float x) {
+  const bool finite = std::abs(x) <= std::numeric_limits<float>::max();
+  const float t = std::min(std::max(finite ? x : 0.f, -1.25f), 32767.25f) + 1.5f;  // > 0
+  const int whole = static_cast<int>(t);  // floor: t is positive
+  const bool unknown = !finite | (static_cast<float>(whole) == t);
+  return unknown ? uint32_t{kUnknownCell} : static_cast<uint32_t>((whole - 2) & 0xFFFF);
 }
 
 }  // namespace
