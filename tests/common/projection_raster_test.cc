@@ -5,13 +5,11 @@
 // Corners lie on a 1/8-pixel grid, so every edge function at a pixel centre is exact in double
 // and the reference decides ties (centres on edges, shared edges) as the fill rule says.
 #include <algorithm>
-#include <bit>
 #include <cmath>
 #include <initializer_list>
 #include <limits>
 #include <random>
 #include <tuple>
-#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -132,93 +130,6 @@ TEST(DepthBufferRasterTest, EdgesThroughPixelCentresFollowTheTopLeftRule) {
   const int upper = coverage({{a, b, c}}), lower = coverage({{a, c, d}});
   EXPECT_EQ(upper + lower, 70);
   EXPECT_EQ(coverage({{a, b, c}, {a, c, d}}), 70);
-}
-
-// The pixel-centre cell of a coordinate, from its definition: floor(x - 0.5) clamped to
-// [-2, 32766], unknown when x - 0.5 is an integer in [-1, 32766] (a centre's coordinate, or
-// the one just left of the buffer) or x not finite. In double, x - 0.5 is exact
-// for |x| < 2^52; a float of magnitude 2^24 or more is an integer, whose cell is x - 1.
-uint32_t ReferenceCell(float scaled) {
-  if (std::isfinite(scaled) && std::abs(scaled) >= 0x1p24f) return scaled > 0.f ? 32766u : 0xFFFEu;
-  const double x = static_cast<double>(scaled) - 0.5;
-  if (!std::isfinite(x) || (x == std::floor(x) && x >= -1.0 && x <= 32766.0)) return kUnknownCell;
-  return static_cast<uint32_t>(static_cast<int>(std::clamp(std::floor(x), -2.0, 32766.0)) & 0xFFFF);
-}
-
-// A cell as PixelCells may give it: the reference's, or unknown within float rounding
-// (2^-23 of the magnitude) of a pixel centre's coordinate on the clamped range.
-bool CellMatches(uint16_t cell, float scaled) {
-  const uint32_t reference = ReferenceCell(scaled);
-  if (cell == reference) return true;
-  const double x = static_cast<double>(scaled) - 0.5;
-  return cell == kUnknownCell && x > -3.0 && x < 32768.0 &&
-         std::abs(x - std::round(x)) <= 0x1p-23 * (std::abs(x) + 2.0);
-}
-
-TEST(PixelCellsTest, EveryKindOfFloatGetsItsCellFromTheDefinition) {
-  std::vector<float> values = {0.f,
-                               -0.f,
-                               0.5f,
-                               -0.5f,
-                               1.f,
-                               -1.f,
-                               1.5f,
-                               -1.5f,
-                               319.5f,
-                               320.f,
-                               32766.5f,
-                               32767.5f,
-                               1e30f,
-                               -1e30f,
-                               1e-30f,
-                               -1e-30f,
-                               std::nextafter(0.5f, 0.f),
-                               std::nextafter(0.5f, 1.f),
-                               std::nextafter(-0.5f, 0.f),
-                               std::nextafter(-0.5f, -1.f),
-                               std::nextafter(-1.f, 0.f),
-                               std::nextafter(-1.f, -2.f),
-                               -0.5f + 0x1p-25f,
-                               16777216.f,
-                               8388608.5f,
-                               -8388608.5f,
-                               std::numeric_limits<float>::infinity(),
-                               -std::numeric_limits<float>::infinity(),
-                               std::numeric_limits<float>::quiet_NaN(),
-                               std::numeric_limits<float>::denorm_min()};
-  std::mt19937 rng(7);
-  std::uniform_real_distribution<float> near_image(-3.f, 700.f);
-  std::uniform_int_distribution<uint32_t> bits;
-  for (int i = 0; i < 200000; ++i) {
-    values.push_back(near_image(rng));
-    // Half-pixel coordinates and their neighbours, the cells' boundaries.
-    const float half = std::floor(near_image(rng)) + 0.5f;
-    values.push_back(half);
-    values.push_back(std::nextafter(half, 0.f));
-    values.push_back(std::nextafter(half, 1e9f));
-    values.push_back(std::bit_cast<float>(bits(rng)));  // any float at all
-  }
-  std::vector<float> zeros(values.size(), 0.f);
-  std::vector<uint32_t> cells(values.size());
-  // As u, then as v (scale 1): the low and the high half of each cell word.
-  PixelCells(values.data(), zeros.data(), values.size(), 1.f, 1.f, cells.data());
-  size_t rounded = 0;
-  for (size_t i = 0; i < values.size(); ++i) {
-    ASSERT_TRUE(CellMatches(cells[i] & 0xFFFF, values[i])) << "x = " << values[i];
-    ASSERT_EQ(cells[i] >> 16, ReferenceCell(0.f));
-    rounded += (cells[i] & 0xFFFF) != ReferenceCell(values[i]);
-  }
-  // Unknown by rounding only next to a centre: a few of the values placed there.
-  EXPECT_LT(rounded, values.size() / 100);
-  PixelCells(zeros.data(), values.data(), values.size(), 1.f, 1.f, cells.data());
-  for (size_t i = 0; i < values.size(); ++i) {
-    ASSERT_TRUE(CellMatches(cells[i] >> 16, values[i])) << "y = " << values[i];
-    ASSERT_EQ(cells[i] & 0xFFFF, ReferenceCell(0.f));
-  }
-  // The buffer's scale is applied in float before the cell: 0.5 halves exactly.
-  const float u = 201.f, v = 3.f;
-  PixelCells(&u, &v, 1, 0.5f, 0.5f, cells.data());
-  EXPECT_EQ(cells[0], ReferenceCell(100.5f) | ReferenceCell(1.5f) << 16);
 }
 
 }  // namespace

@@ -7,14 +7,6 @@
 
 namespace m2s {
 
-uint64_t FeatureRank(VertexId id) {
-  // splitmix64's finaliser: bijective on 64 bits, so distinct ids never tie.
-  uint64_t z = static_cast<uint64_t>(id) + 0x9e3779b97f4a7c15ULL;
-  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-  return z ^ (z >> 31);
-}
-
 uint64_t FeatureRankThreshold(std::span<const VertexId> ids, int budget) {
   if (budget <= 0 || ids.size() <= static_cast<size_t>(budget))
     return std::numeric_limits<uint64_t>::max();

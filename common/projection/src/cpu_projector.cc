@@ -104,6 +104,10 @@ void CpuProjector::Impl::TransformChunk(int worker) {
                                 all_depth.data() + begin, all_visible.data() + begin);
     internal::PixelCells(all_u.data() + begin, all_v.data() + begin, n, cell_scale_x, cell_scale_y,
                          all_cells.data() + begin);
+    if (balanced) {
+      internal::GridCells(all_u.data() + begin, all_v.data() + begin, all_visible.data() + begin, n,
+                          grid_shape(), all_grid_cells.data() + begin);
+    }
   }
 }
 

@@ -63,14 +63,11 @@ void CpuProjector::Impl::CellBoxOf(const internal::ScreenBox& box, CellBox* cell
   cells->y1 = index(box.y1 + 1.0, grid.cell_height, grid.rows);
 }
 
-uint64_t CpuProjector::Impl::CellHeaps::Bound(const CellBox& box, uint32_t capacity) const {
+uint64_t CpuProjector::Impl::CellHeaps::Bound(const CellBox& box) const {
   uint64_t bound = 0;
   for (int cy = box.y0; cy <= box.y1; ++cy) {
-    for (int cx = box.x0; cx <= box.x1; ++cx) {
-      const size_t c = static_cast<size_t>(cy) * static_cast<size_t>(cols) + cx;
-      if (filled[c] < capacity) return kNoBound;
-      bound = std::max(bound, entries[c * capacity].rank);
-    }
+    for (int cx = box.x0; cx <= box.x1; ++cx)
+      bound = std::max(bound, top[static_cast<size_t>(cy) * static_cast<size_t>(cols) + cx]);
   }
   return bound;
 }
@@ -82,43 +79,42 @@ void CpuProjector::Impl::CellHeaps::Add(size_t c, uint32_t capacity, uint64_t ra
   if (filled[c] < capacity) {
     heap[filled[c]++] = {rank, vertex};
     std::push_heap(heap, heap + filled[c]);
+    if (filled[c] == capacity) top[c] = heap[0].rank;
   } else if (rank < heap[0].rank) {
     std::pop_heap(heap, heap + capacity);
     heap[capacity - 1] = {rank, vertex};
     std::push_heap(heap, heap + capacity);
+    top[c] = heap[0].rank;
   }
 }
 
-// Built twice (M2S_KERNEL_CLONES): the cell's floor is one SSE4.1 instruction.
+// Built twice (M2S_KERNEL_CLONES): InFront's floors are SSE4.1 instructions.
 M2S_KERNEL_CLONES
 void CpuProjector::Impl::VisitByRank(size_t k, const float* u, const float* v, const float* depth,
-                                     const uint8_t* visible, CellHeaps& h) {
+                                     const uint16_t* grid_cells, CellHeaps& h) {
   const internal::CullGroup& group = vertex_groups[visible_groups[k]];
   const uint16_t* order = rank_offsets.data() + group.begin;
   const CellBox& box = cell_boxes[k];
   const size_t n = group.end - group.begin;
-  uint64_t bound = h.Bound(box, heap_capacity);
+  uint64_t bound = h.Bound(box);
   size_t next_check = kFirstBoundCheck;
   for (size_t j = 0; j < n; ++j) {
     if (j == next_check) {  // at doubling intervals: a box may cover every cell
-      bound = h.Bound(box, heap_capacity);
+      bound = h.Bound(box);
       next_check *= 2;
     }
     if (j + kPrefetchAhead < n) {
       const uint32_t ahead = order[j + kPrefetchAhead];
-      __builtin_prefetch(u + ahead);
-      __builtin_prefetch(v + ahead);
-      __builtin_prefetch(depth + ahead);
-      __builtin_prefetch(visible + ahead);
+      __builtin_prefetch(grid_cells + ahead);
     }
     const uint32_t offset = order[j];
     const auto id = static_cast<VertexId>(group.begin + offset);
     const uint64_t rank = FeatureRank(id);
     if (rank > bound) break;  // ranks ascend: no later vertex can enter a heap of the box
-    if (!visible[offset]) continue;
-    const auto c = static_cast<size_t>(grid.CellOf(u[offset], v[offset]));
-    // A full heap it cannot enter: the cell's count is already capped, nothing to record.
-    if (h.filled[c] == heap_capacity && rank > h.entries[c * heap_capacity].rank) continue;
+    const uint16_t c = grid_cells[offset];
+    // Out of view, or a full heap it cannot enter (the cell's count is already capped, nothing
+    // to record).
+    if (c == internal::kNotInView || rank > h.top[c]) continue;
     ++h.visited;
     if (options.occlusion && !InFront(u[offset], v[offset], depth[offset])) continue;
     h.Add(c, heap_capacity, rank, ProjectedVertex{id, u[offset], v[offset], depth[offset]});
@@ -133,6 +129,7 @@ void CpuProjector::Impl::BalancedChunk(int worker) {
   h.entries.resize(cells * heap_capacity);
   h.filled.assign(cells, 0);
   h.count.assign(cells, 0);
+  h.top.assign(cells, kNoBound);
   h.visited = 0;
   s.tested = 0;
   for (size_t k = visible_split[worker]; k < visible_split[worker + 1]; ++k) {
@@ -142,7 +139,7 @@ void CpuProjector::Impl::BalancedChunk(int worker) {
       if (GroupHidden(k)) continue;
       const size_t before = h.visited;
       VisitByRank(k, all_u.data() + begin, all_v.data() + begin, all_depth.data() + begin,
-                  all_visible.data() + begin, h);
+                  all_grid_cells.data() + begin, h);
       s.tested += h.visited - before;
     } else {
       if (s.group_u.size() < kVertexGroupSize) {
@@ -150,13 +147,16 @@ void CpuProjector::Impl::BalancedChunk(int worker) {
         s.group_v.resize(kVertexGroupSize);
         s.group_depth.resize(kVertexGroupSize);
         s.group_visible.resize(kVertexGroupSize);
+        s.group_grid_cells.resize(kVertexGroupSize);
       }
       internal::TransformVertices(constants, x.data() + begin, y.data() + begin, z.data() + begin,
                                   n, s.group_u.data(), s.group_v.data(), s.group_depth.data(),
                                   s.group_visible.data());
+      internal::GridCells(s.group_u.data(), s.group_v.data(), s.group_visible.data(), n,
+                          grid_shape(), s.group_grid_cells.data());
       const size_t before = h.visited;
       VisitByRank(k, s.group_u.data(), s.group_v.data(), s.group_depth.data(),
-                  s.group_visible.data(), h);
+                  s.group_grid_cells.data(), h);
       s.tested += h.visited - before;
     }
   }
@@ -221,9 +221,14 @@ Status CpuProjector::ProjectBalanced(const Pose3& world_from_camera, const Camer
       !s) {
     return s;
   }
+  // Grid cells are 16-bit, one value kept for "not in view".
+  if (grid.num_cells() >= internal::kNotInView)
+    return Projector::ProjectBalanced(world_from_camera, camera, grid, budget, out);
   Impl& m = *impl_;
   m.grid = grid;
   m.balanced = true;
+  if (m.options.occlusion && m.all_grid_cells.size() < m.num_vertices)
+    m.all_grid_cells.resize(m.num_vertices);
   m.PrepareRankOrder();
   m.Prepare(world_from_camera, camera, /*balanced=*/true);
   // Twice the cells' share of the budget: a view that fills half the image fits at once.

@@ -49,9 +49,11 @@ struct CpuProjector::Impl {
     int cols = 1;
     std::vector<RankedVertex> entries;  // cell c's heap at [c * capacity, + filled[c])
     std::vector<uint32_t> filled, count;
+    // Per cell: the largest rank in its heap once full, UINT64_MAX before.
+    std::vector<uint64_t> top;
     size_t visited = 0;
     // The largest rank in the heaps of the box's cells, or UINT64_MAX when one is not full.
-    uint64_t Bound(const CellBox& box, uint32_t capacity) const;
+    uint64_t Bound(const CellBox& box) const;
     void Add(size_t c, uint32_t capacity, uint64_t rank, const ProjectedVertex& vertex);
   };
 
@@ -66,6 +68,7 @@ struct CpuProjector::Impl {
     CellHeaps heaps;
     AlignedVector<float> group_u, group_v, group_depth;  // one group, without occlusion
     AlignedVector<uint8_t> group_visible;
+    AlignedVector<uint16_t> group_grid_cells;
   };
 
   ProjectorOptions options;
@@ -79,6 +82,8 @@ struct CpuProjector::Impl {
   AlignedVector<float> all_u, all_v, all_depth;
   AlignedVector<uint8_t> all_visible;
   AlignedVector<uint32_t> all_cells;  // internal::PixelCells in the depth buffer
+  // Balanced projection with occlusion: internal::GridCells of the transformed vertices.
+  AlignedVector<uint16_t> all_grid_cells;
   DepthBuffer depth_buffer;
   DepthBuffer dilated;  // Max3x3 of depth_buffer at every pixel: the vertex test's threshold
 
@@ -179,10 +184,13 @@ struct CpuProjector::Impl {
   void PrepareRankOrder();
   void CellBoxOf(const internal::ScreenBox& box, CellBox* cells) const;
   void BalancedChunk(int worker);
-  // Visits visible group k's vertices in rank order (u, v, depth, visible indexed by offset
+  internal::GridShape grid_shape() const {
+    return {grid.cols, grid.rows, grid.cell_width, grid.cell_height};
+  }
+  // Visits visible group k's vertices in rank order (u, v, depth, grid cells indexed by offset
   // in the group) until none of the rest can enter a heap.
   void VisitByRank(size_t k, const float* u, const float* v, const float* depth,
-                   const uint8_t* visible, CellHeaps& h);
+                   const uint16_t* grid_cells, CellHeaps& h);
   // The balanced selection from the workers' heaps, sorted by id; false when the heaps are
   // too small for it (more whole levels than their capacity).
   bool SelectFromHeaps(int budget, std::vector<ProjectedVertex>* out);

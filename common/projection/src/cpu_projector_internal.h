@@ -140,6 +140,17 @@ void MayCoverPixelCentres(const uint32_t* triangles, size_t n, const uint32_t* c
 void MayCoverPixelCentresOrCrossNear(const uint32_t* triangles, size_t n, const uint32_t* cells,
                                      const float* depth, float near, uint8_t* keep);
 
+// A FeatureGrid's shape, for GridCells.
+struct GridShape {
+  int cols = 1, rows = 1;
+  double cell_width = 1.0, cell_height = 1.0;
+};
+// cells[i] = FeatureGrid::CellOf(u[i], v[i]) (the same double operations) when visible[i],
+// else kNotInView; vectorised. The grid has fewer than kNotInView cells.
+inline constexpr uint16_t kNotInView = 0xFFFF;
+void GridCells(const float* u, const float* v, const uint8_t* visible, size_t n,
+               const GridShape& grid, uint16_t* cells);
+
 // Appends (first_id + i, u[i], v[i], depth[i]) for every i < n with visible[i] to `out`,
 // which must have room for n + 1 entries; returns the number written.
 size_t CompactVisible(const float* u, const float* v, const float* depth, const uint8_t* visible,

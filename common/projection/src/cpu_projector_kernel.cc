@@ -166,6 +166,24 @@ void MayCoverPixelCentresOrCrossNear(const uint32_t* __restrict triangles, size_
   }
 }
 
+M2S_KERNEL_CLONES
+void GridCells(const float* __restrict u, const float* __restrict v,
+               const uint8_t* __restrict visible, size_t n, const GridShape& grid,
+               uint16_t* __restrict cells) {
+  const double last_col = grid.cols - 1, last_row = grid.rows - 1;
+  const double cell_width = grid.cell_width, cell_height = grid.cell_height;
+  const int cols = grid.cols;
+  for (size_t i = 0; i < n; ++i) {
+    // FeatureGrid::Index's steps without its branches: NaN and negatives go to 0.
+    const double col = std::floor(static_cast<double>(u[i]) / cell_width);
+    const double row = std::floor(static_cast<double>(v[i]) / cell_height);
+    const double c = col >= 0.0 ? std::min(col, last_col) : 0.0;
+    const double r = row >= 0.0 ? std::min(row, last_row) : 0.0;
+    const int cell = static_cast<int>(r) * cols + static_cast<int>(c);
+    cells[i] = visible[i] != 0 ? static_cast<uint16_t>(cell) : kNotInView;
+  }
+}
+
 size_t CompactVisible(const float* __restrict u, const float* __restrict v,
                       const float* __restrict depth, const uint8_t* __restrict visible, size_t n,
                       VertexId first_id, ProjectedVertex* __restrict out) {
