@@ -114,6 +114,7 @@ void CpuProjector::Impl::TransformChunk(int worker) {
 void CpuProjector::Impl::SelectTriangles(int worker, int num_workers) {
   WorkerScratch& s = scratch[worker];
   s.survivors.clear();
+  s.in_front.clear();
   const size_t groups = visible_triangle_groups.size();
   const size_t begin = groups * worker / num_workers, end = groups * (worker + 1) / num_workers;
   for (size_t k = begin; k < end; ++k) {
@@ -147,8 +148,21 @@ void CpuProjector::Impl::SelectTriangles(int worker, int num_workers) {
       count += s.keep[i];
     }
     s.survivors.resize(survivors_begin + count);
-    triangle_survivors[k] = {worker, survivors_begin,
-                             survivors_begin + static_cast<uint32_t>(count)};
+    SurvivorRange& range = triangle_survivors[k];
+    range.worker = worker;
+    range.in_front = GroupInFront(box);
+    if (range.in_front) {  // drawn from their screen corners, found here once for all bands
+      range.begin = static_cast<uint32_t>(s.in_front.size());
+      s.in_front.resize(range.begin + count);
+      const size_t kept = PrepareInFront(s.survivors.data() + survivors_begin, count,
+                                         s.in_front.data() + range.begin);
+      s.in_front.resize(range.begin + kept);
+      s.survivors.resize(survivors_begin);
+      range.end = static_cast<uint32_t>(s.in_front.size());
+    } else {
+      range.begin = survivors_begin;
+      range.end = survivors_begin + static_cast<uint32_t>(count);
+    }
   }
 }
 
@@ -179,11 +193,18 @@ void CpuProjector::Impl::RasterizeBand(int band, int num_bands) {
       }
     }
     const SurvivorRange& range = triangle_survivors[k];
-    const uint32_t* survivors = scratch[range.worker].survivors.data();
-    if (GroupInFront(box)) {
-      for (uint32_t i = range.begin; i < range.end; ++i)
-        RasterizeInFront(&triangles[3 * size_t{survivors[i]}], b);
+    if (range.in_front) {
+      const InFrontTriangle* in_front = scratch[range.worker].in_front.data();
+      for (uint32_t i = range.begin; i < range.end; ++i) {
+        const InFrontTriangle& t = in_front[i];
+        // RasterizeInFront's test of the band's rows.
+        if (std::max(static_cast<double>(row_begin), t.first_row) <=
+            std::min(b.last_row, t.last_row)) {
+          internal::RasterizeTriangle(t.a, t.b, t.c, row_begin, row_end, &depth_buffer);
+        }
+      }
     } else {
+      const uint32_t* survivors = scratch[range.worker].survivors.data();
       for (uint32_t i = range.begin; i < range.end; ++i) RasterizeTriangleAt(survivors[i], b);
     }
   }
@@ -236,6 +257,30 @@ void CpuProjector::Impl::RasterizeInFront(const uint32_t* idx, const Band& band)
   const double z0 = all_depth[idx[0]], z1 = all_depth[idx[1]], z2 = all_depth[idx[2]];
   const RasterVertex a{x0, y0, 1.0 / z0}, b{x1, y1, 1.0 / z1}, c{x2, y2, 1.0 / z2};
   internal::RasterizeTriangle(a, b, c, band.row_begin, band.row_end, &depth_buffer);
+}
+
+// Built twice (M2S_KERNEL_CLONES), as RasterizeInFront, with the same tests on the same values.
+M2S_KERNEL_CLONES
+size_t CpuProjector::Impl::PrepareInFront(const uint32_t* survivors, size_t n,
+                                          InFrontTriangle* out) const {
+  const float sx = cell_scale_x, sy = cell_scale_y;
+  const double last_row = depth_buffer.height() - 1, last_column = depth_buffer.width() - 1;
+  size_t count = 0;
+  for (size_t i = 0; i < n; ++i) {
+    const uint32_t* idx = &triangles[3 * size_t{survivors[i]}];
+    const float y0 = all_v[idx[0]] * sy, y1 = all_v[idx[1]] * sy, y2 = all_v[idx[2]] * sy;
+    const double first_row = std::ceil(std::min({y0, y1, y2}) - 0.5);
+    const double end_row = std::floor(std::max({y0, y1, y2}) - 0.5);
+    if (!(std::max(0.0, first_row) <= std::min(last_row, end_row))) continue;
+    const float x0 = all_u[idx[0]] * sx, x1 = all_u[idx[1]] * sx, x2 = all_u[idx[2]] * sx;
+    if (!(std::max(0.0, std::ceil(std::min({x0, x1, x2}) - 0.5)) <=
+          std::min(last_column, std::floor(std::max({x0, x1, x2}) - 0.5)))) {
+      continue;
+    }
+    const double z0 = all_depth[idx[0]], z1 = all_depth[idx[1]], z2 = all_depth[idx[2]];
+    out[count++] = {{x0, y0, 1.0 / z0}, {x1, y1, 1.0 / z1}, {x2, y2, 1.0 / z2}, first_row, end_row};
+  }
+  return count;
 }
 
 void CpuProjector::Impl::TestChunk(int worker) {

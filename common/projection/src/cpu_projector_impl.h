@@ -57,11 +57,19 @@ struct CpuProjector::Impl {
     void Add(size_t c, uint32_t capacity, uint64_t rank, const ProjectedVertex& vertex);
   };
 
+  // A triangle with every corner between near and far that may cover a pixel centre of the
+  // buffer: its buffer-space corners and the rows of pixel centres its box spans.
+  struct InFrontTriangle {
+    RasterVertex a, b, c;
+    double first_row, last_row;
+  };
+
   struct WorkerScratch {
     AlignedVector<float> u, v, depth;
     AlignedVector<uint8_t> visible;
     AlignedVector<uint8_t> keep;       // per triangle of a group: may cover a pixel centre
     std::vector<uint32_t> survivors;   // the triangles kept, of the groups this worker selected
+    std::vector<InFrontTriangle> in_front;  // the same, of groups wholly between near and far
     std::vector<ProjectedVertex> out;  // grows to the chunk size + 1, never shrinks
     size_t count = 0;
     size_t tested = 0;  // vertices of the groups this worker depth-tested in the last frame
@@ -107,9 +115,11 @@ struct CpuProjector::Impl {
   std::vector<internal::ScreenBox> vertex_footprints, triangle_footprints;
   std::vector<std::pair<double, uint32_t>> triangle_order;
   // Per visible triangle group (as visible_triangle_groups): its triangles that may cover a
-  // pixel centre, at scratch[worker].survivors[begin .. end).
+  // pixel centre, at scratch[worker].in_front[begin .. end) when the group lies between near
+  // and far, else scratch[worker].survivors[begin .. end).
   struct SurvivorRange {
     int worker = 0;
+    bool in_front = false;
     uint32_t begin = 0, end = 0;
   };
   std::vector<SurvivorRange> triangle_survivors;
@@ -215,6 +225,9 @@ struct CpuProjector::Impl {
   void RasterizeTriangleAt(size_t t, const Band& band);
   // A triangle whose corners are all at depth >= near.
   void RasterizeInFront(const uint32_t* idx, const Band& band);
+  // For the in-front triangles survivors[0 .. n) (indices): RasterizeInFront's tests that do not
+  // depend on the band, and the corners it draws; returns the number written to `out`.
+  size_t PrepareInFront(const uint32_t* survivors, size_t n, InFrontTriangle* out) const;
   // Every corner of the group with this footprint lies between near and far: no triangle
   // needs clipping or depth checks.
   bool GroupInFront(const internal::ScreenBox& box) const {
