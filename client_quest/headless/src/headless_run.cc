@@ -208,12 +208,13 @@ Expected<HeadlessResult> RunHeadless(const HeadlessOptions& options) {
   const auto period = std::chrono::duration<double>(1.0 / options.fps);
   int64_t last_seq = 0;
   // With --fast, the front end runs ahead of the server (it does not depend on the answers):
-  // frame k + 1 is made while the server tracks frame k, and sent as soon as at most
-  // `in_flight` frames are unanswered. The in-process server queues up to queue_capacity frames
-  // per session and drops only beyond that, so it sees every frame, in order, and tracks each
-  // as without the overlap (a remote server's queue is unknown: one frame at a time).
+  // frame k + 1 is made while the server tracks frame k, and sent as soon as fewer than
+  // `in_flight` frames are unanswered (up to 3: a keyframe's local mapping takes several
+  // frames' time). The in-process server queues up to queue_capacity frames per session and
+  // drops only beyond that, so it sees every frame, in order, and tracks each as without the
+  // overlap (a remote server's queue is unknown: one frame at a time).
   const size_t in_flight =
-      options.on_device ? static_cast<size_t>(std::clamp(options.server.queue_capacity, 1, 2)) : 1;
+      options.on_device ? static_cast<size_t>(std::clamp(options.server.queue_capacity, 1, 3)) : 1;
   std::deque<int64_t> unanswered;
   std::optional<Expected<wire::FeatureFrame>> ahead;
   reporting::FrontEndTime ahead_time;

@@ -192,6 +192,7 @@ bool CpuProjector::Impl::SelectFromHeaps(int budget, std::vector<ProjectedVertex
   }
   out->clear();
   if (all_exact && total <= static_cast<size_t>(budget)) {  // SelectBalanced keeps everything
+    last_levels = 0;
     for (size_t c = 0; c < cells; ++c) {
       for (uint32_t k = 0; k < merged_count[c]; ++k) out->push_back(merged[c * stride + k].vertex);
     }
@@ -199,6 +200,7 @@ bool CpuProjector::Impl::SelectFromHeaps(int budget, std::vector<ProjectedVertex
     // Exact while the levels stay below the heaps' capacity.
     const uint32_t levels = BalancedLevels(merged_count, budget);
     if (levels >= heap_capacity) return false;  // more levels than the heaps hold
+    last_levels = levels;
     next_rank.assign(cells, 0);
     for (size_t c = 0; c < cells; ++c) {
       if (merged_count[c] > levels) next_rank[c] = merged[c * stride + levels].rank;
@@ -231,8 +233,12 @@ Status CpuProjector::ProjectBalanced(const Pose3& world_from_camera, const Camer
     m.all_grid_cells.resize(m.num_vertices);
   m.PrepareRankOrder();
   m.Prepare(world_from_camera, camera, /*balanced=*/true);
-  // Twice the cells' share of the budget: a view that fills half the image fits at once.
-  m.heap_capacity = static_cast<uint32_t>(std::max(4, 2 * budget / grid.num_cells() + 2));
+  // Twice the cells' share of the budget (a view that fills half the image fits at once), or
+  // half as much again as the last frame's levels: consecutive views need about as many, and
+  // a capacity that is too small costs the frame a second visit.
+  const uint32_t share = static_cast<uint32_t>(std::max(4, 2 * budget / grid.num_cells() + 2));
+  m.heap_capacity = std::max(share, std::min<uint32_t>(m.last_levels + m.last_levels / 2 + 2,
+                                                       static_cast<uint32_t>(budget) + 1));
   for (;;) {
     auto visit = [&m](int worker) {
       if (worker < m.active_workers) m.BalancedChunk(worker);

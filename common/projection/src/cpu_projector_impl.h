@@ -67,10 +67,10 @@ struct CpuProjector::Impl {
   struct WorkerScratch {
     AlignedVector<float> u, v, depth;
     AlignedVector<uint8_t> visible;
-    AlignedVector<uint8_t> keep;       // per triangle of a group: may cover a pixel centre
-    std::vector<uint32_t> survivors;   // the triangles kept, of the groups this worker selected
+    AlignedVector<uint8_t> keep;      // per triangle of a group: may cover a pixel centre
+    std::vector<uint32_t> survivors;  // the triangles kept, of the groups this worker selected
     std::vector<InFrontTriangle> in_front;  // the same, of groups wholly between near and far
-    std::vector<ProjectedVertex> out;  // grows to the chunk size + 1, never shrinks
+    std::vector<ProjectedVertex> out;       // grows to the chunk size + 1, never shrinks
     size_t count = 0;
     size_t tested = 0;  // vertices of the groups this worker depth-tested in the last frame
     CellHeaps heaps;
@@ -132,6 +132,7 @@ struct CpuProjector::Impl {
   FeatureGrid grid;
   bool balanced = false;  // the last frame was ProjectBalanced's
   uint32_t heap_capacity = 0;
+  uint32_t last_levels = 0;  // SelectBalanced's levels in the last balanced frame
   std::vector<CellBox> cell_boxes;
   std::vector<RankedVertex> merged;  // SelectFromHeaps' buffers, kept between frames
   std::vector<uint32_t> merged_count;
