@@ -115,7 +115,7 @@ TEST(PixelCellsTest, EveryKindOfFloatGetsItsCellFromTheDefinition) {
   EXPECT_EQ(cells[0], ReferenceCell(100.5f) | ReferenceCell(1.5f) << 16);
 }
 
-TEST(GridCellsTest, EveryKindOfFloatGetsFeatureGridCellOfsCell) {
+TEST(GridCellsTest, EveryKindOfFloatGetsFeatureGridCellOfsCellAndBlocksTheirRanges) {
   const std::vector<float> values = TestValues();
   for (const auto& [width, height] : {std::pair{640, 480}, std::pair{1000, 37}}) {
     const FeatureGrid grid = FeatureGrid::ForImage(width, height);
@@ -125,12 +125,29 @@ TEST(GridCellsTest, EveryKindOfFloatGetsFeatureGridCellOfsCell) {
     std::shuffle(v.begin(), v.end(), rng);
     std::vector<uint8_t> visible(values.size());
     for (size_t i = 0; i < visible.size(); ++i) visible[i] = static_cast<uint8_t>(i % 7 != 3);
-    std::vector<uint16_t> cells(values.size());
-    GridCells(values.data(), v.data(), visible.data(), values.size(), shape, cells.data());
-    for (size_t i = 0; i < values.size(); ++i) {
-      const uint16_t expected =
-          visible[i] ? static_cast<uint16_t>(grid.CellOf(values[i], v[i])) : kNotInView;
-      ASSERT_EQ(cells[i], expected) << "u = " << values[i] << ", v = " << v[i];
+    // A last block of 100, and a block with no vertex in view.
+    const size_t n = values.size() - values.size() % kCellBlock + 100;
+    for (size_t i = 3 * kCellBlock; i < 4 * kCellBlock; ++i) visible[i] = 0;
+    std::vector<uint16_t> cells(n);
+    std::vector<CellRange> blocks((n + kCellBlock - 1) / kCellBlock);
+    GridCells(values.data(), v.data(), visible.data(), n, shape, cells.data(), blocks.data());
+    for (size_t b = 0; b < blocks.size(); ++b) {
+      CellRange expected_range{grid.cols, -1, grid.rows, -1};
+      for (size_t i = b * kCellBlock; i < std::min(n, (b + 1) * kCellBlock); ++i) {
+        const uint16_t expected =
+            visible[i] ? static_cast<uint16_t>(grid.CellOf(values[i], v[i])) : kNotInView;
+        ASSERT_EQ(cells[i], expected) << "u = " << values[i] << ", v = " << v[i];
+        if (!visible[i]) continue;
+        const int col = expected % grid.cols, row = expected / grid.cols;
+        expected_range = {std::min(expected_range.x0, col), std::max(expected_range.x1, col),
+                          std::min(expected_range.y0, row), std::max(expected_range.y1, row)};
+      }
+      EXPECT_EQ(blocks[b].empty(), b == 3) << b;
+      if (b == 3) continue;
+      EXPECT_EQ(blocks[b].x0, expected_range.x0) << b;
+      EXPECT_EQ(blocks[b].x1, expected_range.x1) << b;
+      EXPECT_EQ(blocks[b].y0, expected_range.y0) << b;
+      EXPECT_EQ(blocks[b].y1, expected_range.y1) << b;
     }
   }
 }

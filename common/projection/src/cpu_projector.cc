@@ -26,19 +26,14 @@ Status ProjectorOptions::Check() const {
   return Status::Ok();
 }
 
-void CpuProjector::Impl::Cull(const Pose3& world_from_camera, int pool_size, bool balanced) {
+void CpuProjector::Impl::Cull(const Pose3& world_from_camera, int pool_size) {
   const internal::FrustumCuller culler(world_from_camera, camera, kCullMarginPx);
   visible_groups.clear();
-  cell_boxes.clear();
   frame_vertices = 0;
   for (uint32_t g = 0; g < vertex_groups.size(); ++g) {
     if (!culler.MayBeVisible(vertex_groups[g])) continue;
     visible_groups.push_back(g);
     frame_vertices += vertex_groups[g].end - vertex_groups[g].begin;
-    if (balanced) {
-      CellBoxOf(culler.Footprint(vertex_groups[g], camera.width, camera.height),
-                &cell_boxes.emplace_back());
-    }
   }
   active_workers = static_cast<int>(std::clamp<size_t>(frame_vertices / kMinVerticesPerWorker, 1,
                                                        static_cast<size_t>(pool_size)));
@@ -106,7 +101,8 @@ void CpuProjector::Impl::TransformChunk(int worker) {
                          all_cells.data() + begin);
     if (balanced) {
       internal::GridCells(all_u.data() + begin, all_v.data() + begin, all_visible.data() + begin, n,
-                          grid_shape(), all_grid_cells.data() + begin);
+                          grid_shape(), all_grid_cells.data() + begin,
+                          all_blocks.data() + begin / internal::kCellBlock);
     }
   }
 }
@@ -340,7 +336,7 @@ void CpuProjector::Impl::Prepare(const Pose3& world_from_camera, const Camera& f
     depth_rule.relative = 1.f + static_cast<float>(options.occlusion_depth_bias_relative);
     depth_rule.absolute = static_cast<float>(options.occlusion_depth_bias_m);
   }
-  Cull(world_from_camera, pool_size, balanced);
+  Cull(world_from_camera, pool_size);
   if (!options.occlusion) return;
   auto transform = [this](int worker) {
     if (worker < active_workers) TransformChunk(worker);

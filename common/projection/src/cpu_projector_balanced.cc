@@ -3,14 +3,16 @@
 //
 // SelectBalanced keeps, per grid cell, the `levels` lowest-ranked features (and the next one
 // of some cells). Here every worker keeps, per cell, a max-heap of the `capacity` lowest-ranked
-// visible vertices it found and the number it found. A vertex group is visited in the rank
-// order of its ids, so the heaps soon hold low ranks: an in-view vertex whose cell's heap is
-// full with lower ranks is passed over before its depth test, and once every cell of the
-// group's footprint holds such a heap, with ranks below the next vertex's, the rest of the
-// group is left. Neither skip can change a heap, and both happen only in full cells, so a cell
-// whose heap is not full has an exact count; a full one has at least `capacity` visible
-// vertices. That is all the selection needs when levels < capacity; otherwise the frame is
-// tested again with a larger capacity (a view whose features gather in a few cells).
+// visible vertices it found and the number it found. A vertex group is visited by blocks of
+// kCellBlock consecutive ids (a compact piece of surface), each in the rank order of its ids,
+// so the heaps soon hold low ranks: an in-view vertex whose cell's heap is full with lower
+// ranks is passed over before its depth test, and once every cell the block's visible
+// vertices fall in (GridCells' range) holds such a heap, with ranks below the next vertex's,
+// the rest of the block is left. Neither skip can change a heap, and both happen only in full
+// cells, so a cell whose heap is not full has an exact count; a full one has at least
+// `capacity` visible vertices. That is all the selection needs when levels < capacity;
+// otherwise the frame is tested again with a larger capacity (a view whose features gather in
+// a few cells).
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -25,45 +27,30 @@ constexpr uint64_t kNoBound = std::numeric_limits<uint64_t>::max();
 // The heaps' largest ranks over a group's box are read at its start and after 32, 64, 128,
 // ... of its vertices (a stale bound only visits more vertices, at most twice as many).
 constexpr size_t kFirstBoundCheck = 32;
-// The rank order reads a group's arrays at random: their entries are fetched this many
-// vertices ahead of their visit.
-constexpr size_t kPrefetchAhead = 32;
 
 }  // namespace
 
 void CpuProjector::Impl::PrepareRankOrder() {
   if (rank_offsets.size() < num_vertices) rank_offsets.resize(num_vertices);
   rank_order_size.resize(vertex_groups.size(), 0);
-  std::vector<std::pair<uint64_t, uint16_t>> ranked;
+  std::vector<std::pair<uint64_t, uint8_t>> ranked;
   for (size_t g = 0; g < vertex_groups.size(); ++g) {
     const uint32_t begin = static_cast<uint32_t>(g * kVertexGroupSize);
     const uint32_t end = static_cast<uint32_t>(std::min(num_vertices, begin + kVertexGroupSize));
     if (rank_order_size[g] == end - begin) continue;
-    ranked.clear();
-    for (uint32_t i = begin; i < end; ++i)
-      ranked.emplace_back(FeatureRank(i), static_cast<uint16_t>(i - begin));
-    std::sort(ranked.begin(), ranked.end());
-    for (size_t k = 0; k < ranked.size(); ++k) rank_offsets[begin + k] = ranked[k].second;
+    for (uint32_t block = begin; block < end; block += internal::kCellBlock) {
+      const uint32_t block_end = std::min<uint32_t>(end, block + internal::kCellBlock);
+      ranked.clear();
+      for (uint32_t i = block; i < block_end; ++i)
+        ranked.emplace_back(FeatureRank(i), static_cast<uint8_t>(i - block));
+      std::sort(ranked.begin(), ranked.end());
+      for (size_t k = 0; k < ranked.size(); ++k) rank_offsets[block + k] = ranked[k].second;
+    }
     rank_order_size[g] = end - begin;
   }
 }
 
-void CpuProjector::Impl::CellBoxOf(const internal::ScreenBox& box, CellBox* cells) const {
-  if (!box.bounded) {
-    *cells = {0, grid.cols - 1, 0, grid.rows - 1};
-    return;
-  }
-  // The footprint's pixels [x0, x1] x [y0, y1] hold every vertex of the group: u < x1 + 1.
-  auto index = [](double x, double step, int count) {
-    return std::clamp(static_cast<int>(std::floor(x / step)), 0, count - 1);
-  };
-  cells->x0 = index(box.x0, grid.cell_width, grid.cols);
-  cells->x1 = index(box.x1 + 1.0, grid.cell_width, grid.cols);
-  cells->y0 = index(box.y0, grid.cell_height, grid.rows);
-  cells->y1 = index(box.y1 + 1.0, grid.cell_height, grid.rows);
-}
-
-uint64_t CpuProjector::Impl::CellHeaps::Bound(const CellBox& box) const {
+uint64_t CpuProjector::Impl::CellHeaps::Bound(const internal::CellRange& box) const {
   uint64_t bound = 0;
   for (int cy = box.y0; cy <= box.y1; ++cy) {
     for (int cx = box.x0; cx <= box.x1; ++cx)
@@ -91,33 +78,34 @@ void CpuProjector::Impl::CellHeaps::Add(size_t c, uint32_t capacity, uint64_t ra
 // Built twice (M2S_KERNEL_CLONES): InFront's floors are SSE4.1 instructions.
 M2S_KERNEL_CLONES
 void CpuProjector::Impl::VisitByRank(size_t k, const float* u, const float* v, const float* depth,
-                                     const uint16_t* grid_cells, CellHeaps& h) {
+                                     const uint16_t* grid_cells, const internal::CellRange* blocks,
+                                     CellHeaps& h) {
   const internal::CullGroup& group = vertex_groups[visible_groups[k]];
-  const uint16_t* order = rank_offsets.data() + group.begin;
-  const CellBox& box = cell_boxes[k];
   const size_t n = group.end - group.begin;
-  uint64_t bound = h.Bound(box);
-  size_t next_check = kFirstBoundCheck;
-  for (size_t j = 0; j < n; ++j) {
-    if (j == next_check) {  // at doubling intervals: a box may cover every cell
-      bound = h.Bound(box);
-      next_check *= 2;
+  for (size_t block = 0; block < n; block += internal::kCellBlock) {
+    const internal::CellRange& cells = blocks[block / internal::kCellBlock];
+    if (cells.empty()) continue;  // nothing of the block in view
+    const uint8_t* order = rank_offsets.data() + group.begin + block;
+    const size_t m = std::min(internal::kCellBlock, n - block);
+    uint64_t bound = h.Bound(cells);
+    size_t next_check = kFirstBoundCheck;
+    for (size_t j = 0; j < m; ++j) {
+      if (j == next_check) {  // at doubling intervals: the heaps fill as the block is visited
+        bound = h.Bound(cells);
+        next_check *= 2;
+      }
+      const size_t offset = block + order[j];
+      const auto id = static_cast<VertexId>(group.begin + offset);
+      const uint64_t rank = FeatureRank(id);
+      if (rank > bound) break;  // ranks ascend: no later vertex can enter a heap of its cells
+      const uint16_t c = grid_cells[offset];
+      // Out of view, or a full heap it cannot enter (the cell's count is already capped,
+      // nothing to record).
+      if (c == internal::kNotInView || rank > h.top[c]) continue;
+      ++h.visited;
+      if (options.occlusion && !InFront(u[offset], v[offset], depth[offset])) continue;
+      h.Add(c, heap_capacity, rank, ProjectedVertex{id, u[offset], v[offset], depth[offset]});
     }
-    if (j + kPrefetchAhead < n) {
-      const uint32_t ahead = order[j + kPrefetchAhead];
-      __builtin_prefetch(grid_cells + ahead);
-    }
-    const uint32_t offset = order[j];
-    const auto id = static_cast<VertexId>(group.begin + offset);
-    const uint64_t rank = FeatureRank(id);
-    if (rank > bound) break;  // ranks ascend: no later vertex can enter a heap of the box
-    const uint16_t c = grid_cells[offset];
-    // Out of view, or a full heap it cannot enter (the cell's count is already capped, nothing
-    // to record).
-    if (c == internal::kNotInView || rank > h.top[c]) continue;
-    ++h.visited;
-    if (options.occlusion && !InFront(u[offset], v[offset], depth[offset])) continue;
-    h.Add(c, heap_capacity, rank, ProjectedVertex{id, u[offset], v[offset], depth[offset]});
   }
 }
 
@@ -139,7 +127,8 @@ void CpuProjector::Impl::BalancedChunk(int worker) {
       if (GroupHidden(k)) continue;
       const size_t before = h.visited;
       VisitByRank(k, all_u.data() + begin, all_v.data() + begin, all_depth.data() + begin,
-                  all_grid_cells.data() + begin, h);
+                  all_grid_cells.data() + begin, all_blocks.data() + begin / internal::kCellBlock,
+                  h);
       s.tested += h.visited - before;
     } else {
       if (s.group_u.size() < kVertexGroupSize) {
@@ -148,15 +137,16 @@ void CpuProjector::Impl::BalancedChunk(int worker) {
         s.group_depth.resize(kVertexGroupSize);
         s.group_visible.resize(kVertexGroupSize);
         s.group_grid_cells.resize(kVertexGroupSize);
+        s.group_blocks.resize(kVertexGroupSize / internal::kCellBlock);
       }
       internal::TransformVertices(constants, x.data() + begin, y.data() + begin, z.data() + begin,
                                   n, s.group_u.data(), s.group_v.data(), s.group_depth.data(),
                                   s.group_visible.data());
       internal::GridCells(s.group_u.data(), s.group_v.data(), s.group_visible.data(), n,
-                          grid_shape(), s.group_grid_cells.data());
+                          grid_shape(), s.group_grid_cells.data(), s.group_blocks.data());
       const size_t before = h.visited;
       VisitByRank(k, s.group_u.data(), s.group_v.data(), s.group_depth.data(),
-                  s.group_grid_cells.data(), h);
+                  s.group_grid_cells.data(), s.group_blocks.data(), h);
       s.tested += h.visited - before;
     }
   }
@@ -229,8 +219,10 @@ Status CpuProjector::ProjectBalanced(const Pose3& world_from_camera, const Camer
   Impl& m = *impl_;
   m.grid = grid;
   m.balanced = true;
-  if (m.options.occlusion && m.all_grid_cells.size() < m.num_vertices)
+  if (m.options.occlusion && m.all_grid_cells.size() < m.num_vertices) {
     m.all_grid_cells.resize(m.num_vertices);
+    m.all_blocks.resize((m.num_vertices + internal::kCellBlock - 1) / internal::kCellBlock);
+  }
   m.PrepareRankOrder();
   m.Prepare(world_from_camera, camera, /*balanced=*/true);
   // Twice the cells' share of the budget (a view that fills half the image fits at once), or

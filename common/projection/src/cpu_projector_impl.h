@@ -42,9 +42,6 @@ struct CpuProjector::Impl {
     ProjectedVertex vertex;
     bool operator<(const RankedVertex& o) const { return rank < o.rank; }
   };
-  struct CellBox {
-    int x0 = 0, x1 = -1, y0 = 0, y1 = -1;  // grid cells, inclusive
-  };
   struct CellHeaps {
     int cols = 1;
     std::vector<RankedVertex> entries;  // cell c's heap at [c * capacity, + filled[c])
@@ -53,7 +50,7 @@ struct CpuProjector::Impl {
     std::vector<uint64_t> top;
     size_t visited = 0;
     // The largest rank in the heaps of the box's cells, or UINT64_MAX when one is not full.
-    uint64_t Bound(const CellBox& box) const;
+    uint64_t Bound(const internal::CellRange& box) const;
     void Add(size_t c, uint32_t capacity, uint64_t rank, const ProjectedVertex& vertex);
   };
 
@@ -77,6 +74,7 @@ struct CpuProjector::Impl {
     AlignedVector<float> group_u, group_v, group_depth;  // one group, without occlusion
     AlignedVector<uint8_t> group_visible;
     AlignedVector<uint16_t> group_grid_cells;
+    std::vector<internal::CellRange> group_blocks;
   };
 
   ProjectorOptions options;
@@ -90,8 +88,10 @@ struct CpuProjector::Impl {
   AlignedVector<float> all_u, all_v, all_depth;
   AlignedVector<uint8_t> all_visible;
   AlignedVector<uint32_t> all_cells;  // internal::PixelCells in the depth buffer
-  // Balanced projection with occlusion: internal::GridCells of the transformed vertices.
+  // Balanced projection with occlusion: internal::GridCells of the transformed vertices, and
+  // the ranges of cells of their blocks of kCellBlock.
   AlignedVector<uint16_t> all_grid_cells;
+  std::vector<internal::CellRange> all_blocks;
   DepthBuffer depth_buffer;
   DepthBuffer dilated;  // Max3x3 of depth_buffer at every pixel: the vertex test's threshold
 
@@ -125,19 +125,17 @@ struct CpuProjector::Impl {
   std::vector<SurvivorRange> triangle_survivors;
   std::vector<size_t> visible_split, transform_split;
   std::vector<uint8_t> group_needed;
-  // Balanced projection: the grid, the heaps' capacity, the grid cells each visible vertex
-  // group's box covers (as visible_groups), and per vertex group the offsets of its vertices
-  // in the rank order of their ids (rank_offsets[begin .. end), made for rank_order_size[g]
-  // vertices).
+  // Balanced projection: the grid, the heaps' capacity, and per block of internal::kCellBlock
+  // vertices the offsets of its vertices in the rank order of their ids (rank_offsets[begin ..
+  // end), made for rank_order_size[g] vertices of vertex group g).
   FeatureGrid grid;
   bool balanced = false;  // the last frame was ProjectBalanced's
   uint32_t heap_capacity = 0;
-  uint32_t last_levels = 0;  // SelectBalanced's levels in the last balanced frame
-  std::vector<CellBox> cell_boxes;
+  uint32_t last_levels = 0;          // SelectBalanced's levels in the last balanced frame
   std::vector<RankedVertex> merged;  // SelectFromHeaps' buffers, kept between frames
   std::vector<uint32_t> merged_count;
   std::vector<uint64_t> next_rank;
-  std::vector<uint16_t> rank_offsets;
+  std::vector<uint8_t> rank_offsets;
   std::vector<uint32_t> rank_order_size;
   // InFront's constants, set by Prepare for each frame with occlusion.
   struct DepthRule {
@@ -166,8 +164,8 @@ struct CpuProjector::Impl {
   }
   // Re-boxes the vertex groups holding `ids` (sorted) and the groups of ids [first, end).
   void ReboxVertices(const std::vector<VertexId>& ids, VertexId first, VertexId end);
-  // Fills the per-frame lists (and, when balanced, cell_boxes).
-  void Cull(const Pose3& world_from_camera, int pool_size, bool balanced);
+  // Fills the per-frame lists.
+  void Cull(const Pose3& world_from_camera, int pool_size);
   // Everything before the vertex test: frame constants, culling and, with occlusion, the
   // transform, the depth buffer and its 3x3 maximum.
   void Prepare(const Pose3& world_from_camera, const Camera& frame_camera, bool balanced);
@@ -193,15 +191,15 @@ struct CpuProjector::Impl {
   static Status CheckFrame(const char* caller, const Pose3& world_from_camera, const Camera& camera,
                            std::vector<ProjectedVertex>* out);
   void PrepareRankOrder();
-  void CellBoxOf(const internal::ScreenBox& box, CellBox* cells) const;
   void BalancedChunk(int worker);
   internal::GridShape grid_shape() const {
     return {grid.cols, grid.rows, grid.cell_width, grid.cell_height};
   }
-  // Visits visible group k's vertices in rank order (u, v, depth, grid cells indexed by offset
-  // in the group) until none of the rest can enter a heap.
+  // Visits visible group k's blocks of kCellBlock vertices, each in rank order until none of
+  // its other vertices can enter a heap (u, v, depth, grid cells indexed by offset in the
+  // group; blocks: the groups' GridCells ranges).
   void VisitByRank(size_t k, const float* u, const float* v, const float* depth,
-                   const uint16_t* grid_cells, CellHeaps& h);
+                   const uint16_t* grid_cells, const internal::CellRange* blocks, CellHeaps& h);
   // The balanced selection from the workers' heaps, sorted by id; false when the heaps are
   // too small for it (more whole levels than their capacity).
   bool SelectFromHeaps(int budget, std::vector<ProjectedVertex>* out);

@@ -145,11 +145,20 @@ struct GridShape {
   int cols = 1, rows = 1;
   double cell_width = 1.0, cell_height = 1.0;
 };
+// Grid cells [x0, x1] x [y0, y1] (inclusive; empty when x0 > x1).
+struct CellRange {
+  int x0 = 0, x1 = -1, y0 = 0, y1 = -1;
+  bool empty() const { return x0 > x1; }
+};
+// Vertices per block of GridCells' ranges (and of the balanced visit's rank order).
+inline constexpr size_t kCellBlock = 256;
 // cells[i] = FeatureGrid::CellOf(u[i], v[i]) (the same double operations) when visible[i],
-// else kNotInView; vectorised. The grid has fewer than kNotInView cells.
+// else kNotInView; blocks[b] = the range of the cells of the visible vertices among
+// [b * kCellBlock, (b + 1) * kCellBlock) (empty when none is). Vectorised. The grid has fewer
+// than kNotInView cells.
 inline constexpr uint16_t kNotInView = 0xFFFF;
 void GridCells(const float* u, const float* v, const uint8_t* visible, size_t n,
-               const GridShape& grid, uint16_t* cells);
+               const GridShape& grid, uint16_t* cells, CellRange* blocks);
 
 // Appends (first_id + i, u[i], v[i], depth[i]) for every i < n with visible[i] to `out`,
 // which must have room for n + 1 entries; returns the number written.

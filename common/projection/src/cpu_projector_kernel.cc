@@ -166,21 +166,46 @@ void MayCoverPixelCentresOrCrossNear(const uint32_t* __restrict triangles, size_
   }
 }
 
+namespace {
+
+// FeatureGrid::Index's steps without its branches: NaN and negatives go to 0.
+inline int GridIndex(float x, double step, double last) {
+  const double i = std::floor(static_cast<double>(x) / step);
+  return static_cast<int>(i >= 0.0 ? std::min(i, last) : 0.0);
+}
+
+}  // namespace
+
 M2S_KERNEL_CLONES
 void GridCells(const float* __restrict u, const float* __restrict v,
                const uint8_t* __restrict visible, size_t n, const GridShape& grid,
-               uint16_t* __restrict cells) {
+               uint16_t* __restrict cells, CellRange* __restrict blocks) {
   const double last_col = grid.cols - 1, last_row = grid.rows - 1;
   const double cell_width = grid.cell_width, cell_height = grid.cell_height;
   const int cols = grid.cols;
-  for (size_t i = 0; i < n; ++i) {
-    // FeatureGrid::Index's steps without its branches: NaN and negatives go to 0.
-    const double col = std::floor(static_cast<double>(u[i]) / cell_width);
-    const double row = std::floor(static_cast<double>(v[i]) / cell_height);
-    const double c = col >= 0.0 ? std::min(col, last_col) : 0.0;
-    const double r = row >= 0.0 ? std::min(row, last_row) : 0.0;
-    const int cell = static_cast<int>(r) * cols + static_cast<int>(c);
-    cells[i] = visible[i] != 0 ? static_cast<uint16_t>(cell) : kNotInView;
+  const int rows = grid.rows;
+  int col[kCellBlock], row[kCellBlock];
+  for (size_t begin = 0; begin < n; begin += kCellBlock) {
+    const size_t m = std::min(n - begin, kCellBlock);
+    const float* bu = u + begin;
+    const float* bv = v + begin;
+    const uint8_t* in_view = visible + begin;
+    for (size_t i = 0; i < m; ++i) {
+      col[i] = GridIndex(bu[i], cell_width, last_col);
+      row[i] = GridIndex(bv[i], cell_height, last_row);
+      cells[begin + i] =
+          in_view[i] != 0 ? static_cast<uint16_t>(row[i] * cols + col[i]) : kNotInView;
+    }
+    // The range of the block's cells in view (integer min and max reductions).
+    int col_min = cols, col_max = -1, row_min = rows, row_max = -1;
+    for (size_t i = 0; i < m; ++i) {
+      const bool seen = in_view[i] != 0;
+      col_min = std::min(col_min, seen ? col[i] : cols);
+      col_max = std::max(col_max, seen ? col[i] : -1);
+      row_min = std::min(row_min, seen ? row[i] : rows);
+      row_max = std::max(row_max, seen ? row[i] : -1);
+    }
+    blocks[begin / kCellBlock] = {col_min, col_max, row_min, row_max};
   }
 }
 
