@@ -2,10 +2,11 @@
 // network namespace: two agents walking one path in opposite directions share one map; two
 // sharded servers and four agents in two groups (every agent served by exactly one server,
 // every group one map); a server stopped and restarted with --resume-maps continues its group's
-// map in the same world. Clients run --fast (every frame answered before the next: the figures
-// do not depend on the machine's speed). References: the generated ground truth through
-// m2s_eval --agent (one Sim3 for all agents of a group) and the clients' metrics.json.
+// map in the same world. Clients run --fast (every frame answered before the next; which agent
+// of a group starts its map still depends on scheduling). References: the generated ground truth
+// through m2s_eval --agent (one Sim3 for all agents of a group) and the clients' metrics.json.
 // Skipped, with one line, where namespaces are not permitted.
+#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -113,13 +114,20 @@ TEST(MapGroupNetworkTest, TwoAgentsInOppositeDirectionsShareOneMapAcrossProcesse
                                 << ClientLine(dir / "b.tum", "room", outs[1]) << WaitClientsLines()
                                 << testing::StopServerLines() << "exit 0\n";
   ASSERT_EQ(RunInNamespace(dir / "run.sh"), 0) << Logs(outs, dir);
+  // Which agent starts the group's map depends on scheduling. That agent loses no frame; the
+  // other either starts a map of its own at once, or first joins the group's map, which it
+  // cannot see (it starts at the other end of the walk), and is lost until it starts its own
+  // (MultiMapOptions::new_map_after_lost_s, 0.5 s) and initialises it: under 1 s of frames.
+  std::vector<int> lost;
   for (const fs::path& out : outs) {
     const nlohmann::json m = Metrics(out);
     EXPECT_EQ(m["map_group"], "room");
     EXPECT_EQ(m["servers_seen"], 1);
-    EXPECT_EQ(m["frames_lost"], 0) << out;
+    lost.push_back(m["frames_lost"].get<int>());
+    EXPECT_LT(lost.back(), kFps) << out;
     EXPECT_FALSE(m["merged_at_s"].is_null()) << out;  // in the group's map by the end
   }
+  EXPECT_EQ(*std::min_element(lost.begin(), lost.end()), 0);
   const nlohmann::json joint = JointAte(outs, dir);
   EXPECT_LT(joint["joint"]["ate_rmse"].get<double>(), 1e-3) << joint.dump();
   const nlohmann::json stats = nlohmann::json::parse(testing::ReadFile(dir / "stats.json"));
