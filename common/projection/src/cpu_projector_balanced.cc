@@ -30,24 +30,19 @@ constexpr size_t kFirstBoundCheck = 32;
 
 }  // namespace
 
-void CpuProjector::Impl::PrepareRankOrder() {
-  if (rank_offsets.size() < num_vertices) rank_offsets.resize(num_vertices);
-  rank_order_size.resize(vertex_groups.size(), 0);
-  std::vector<std::pair<uint64_t, uint8_t>> ranked;
-  for (size_t g = 0; g < vertex_groups.size(); ++g) {
-    const uint32_t begin = static_cast<uint32_t>(g * kVertexGroupSize);
-    const uint32_t end = static_cast<uint32_t>(std::min(num_vertices, begin + kVertexGroupSize));
-    if (rank_order_size[g] == end - begin) continue;
-    for (uint32_t block = begin; block < end; block += internal::kCellBlock) {
-      const uint32_t block_end = std::min<uint32_t>(end, block + internal::kCellBlock);
-      ranked.clear();
-      for (uint32_t i = block; i < block_end; ++i)
-        ranked.emplace_back(FeatureRank(i), static_cast<uint8_t>(i - block));
-      std::sort(ranked.begin(), ranked.end());
-      for (size_t k = 0; k < ranked.size(); ++k) rank_offsets[block + k] = ranked[k].second;
-    }
-    rank_order_size[g] = end - begin;
+void CpuProjector::Impl::PrepareRankOrder(size_t g, WorkerScratch& s) {
+  const uint32_t begin = static_cast<uint32_t>(g * kVertexGroupSize);
+  const uint32_t end = static_cast<uint32_t>(std::min(num_vertices, begin + kVertexGroupSize));
+  if (rank_order_size[g] == end - begin) return;
+  for (uint32_t block = begin; block < end; block += internal::kCellBlock) {
+    const uint32_t block_end = std::min<uint32_t>(end, block + internal::kCellBlock);
+    s.ranked.clear();
+    for (uint32_t i = block; i < block_end; ++i)
+      s.ranked.emplace_back(FeatureRank(i), static_cast<uint8_t>(i - block));
+    std::sort(s.ranked.begin(), s.ranked.end());
+    for (size_t k = 0; k < s.ranked.size(); ++k) rank_offsets[block + k] = s.ranked[k].second;
   }
+  rank_order_size[g] = end - begin;
 }
 
 uint64_t CpuProjector::Impl::CellHeaps::Bound(const internal::CellRange& box) const {
@@ -123,8 +118,9 @@ void CpuProjector::Impl::BalancedChunk(int worker) {
   for (size_t k = visible_split[worker]; k < visible_split[worker + 1]; ++k) {
     const internal::CullGroup& group = vertex_groups[visible_groups[k]];
     const size_t begin = group.begin, n = group.end - group.begin;
+    if (options.occlusion && GroupHidden(k)) continue;
+    PrepareRankOrder(visible_groups[k], s);
     if (options.occlusion) {
-      if (GroupHidden(k)) continue;
       const size_t before = h.visited;
       VisitByRank(k, all_u.data() + begin, all_v.data() + begin, all_depth.data() + begin,
                   all_grid_cells.data() + begin, all_blocks.data() + begin / internal::kCellBlock,
@@ -223,7 +219,9 @@ Status CpuProjector::ProjectBalanced(const Pose3& world_from_camera, const Camer
     m.all_grid_cells.resize(m.num_vertices);
     m.all_blocks.resize((m.num_vertices + internal::kCellBlock - 1) / internal::kCellBlock);
   }
-  m.PrepareRankOrder();
+  // The rank order of each group is made when the group is first visited.
+  if (m.rank_offsets.size() < m.num_vertices) m.rank_offsets.resize(m.num_vertices);
+  m.rank_order_size.resize(m.vertex_groups.size(), 0);
   m.Prepare(world_from_camera, camera, /*balanced=*/true);
   // Twice the cells' share of the budget (a view that fills half the image fits at once), or
   // half as much again as the last frame's levels: consecutive views need about as many, and

@@ -75,6 +75,7 @@ struct CpuProjector::Impl {
     AlignedVector<uint8_t> group_visible;
     AlignedVector<uint16_t> group_grid_cells;
     std::vector<internal::CellRange> group_blocks;
+    std::vector<std::pair<uint64_t, uint8_t>> ranked;  // PrepareRankOrder's buffer
   };
 
   ProjectorOptions options;
@@ -190,7 +191,8 @@ struct CpuProjector::Impl {
   // pose.
   static Status CheckFrame(const char* caller, const Pose3& world_from_camera, const Camera& camera,
                            std::vector<ProjectedVertex>* out);
-  void PrepareRankOrder();
+  // Makes vertex group g's rank order unless it is made (a worker's own groups only).
+  void PrepareRankOrder(size_t g, WorkerScratch& s);
   void BalancedChunk(int worker);
   internal::GridShape grid_shape() const {
     return {grid.cols, grid.rows, grid.cell_width, grid.cell_height};
