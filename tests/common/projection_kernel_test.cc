@@ -117,7 +117,10 @@ TEST(PixelCellsTest, EveryKindOfFloatGetsItsCellFromTheDefinition) {
 
 TEST(GridCellsTest, EveryKindOfFloatGetsFeatureGridCellOfsCellAndBlocksTheirRanges) {
   const std::vector<float> values = TestValues();
-  for (const auto& [width, height] : {std::pair{640, 480}, std::pair{1000, 37}}) {
+  // 640 x 480 and 1000 x 37: cells whose sizes are exact in float (GridCells' float path);
+  // 480 x 500: 17 rows of 29.41 px (its double path).
+  for (const auto& [width, height] :
+       {std::pair{640, 480}, std::pair{1000, 37}, std::pair{480, 500}}) {
     const FeatureGrid grid = FeatureGrid::ForImage(width, height);
     const GridShape shape{grid.cols, grid.rows, grid.cell_width, grid.cell_height};
     std::mt19937 rng(11);
@@ -126,7 +129,9 @@ TEST(GridCellsTest, EveryKindOfFloatGetsFeatureGridCellOfsCellAndBlocksTheirRang
     std::vector<uint8_t> visible(values.size());
     for (size_t i = 0; i < visible.size(); ++i) visible[i] = static_cast<uint8_t>(i % 7 != 3);
     // A last block of 100, and a block with no vertex in view.
-    const size_t n = values.size() - values.size() % kCellBlock + 100;
+    const size_t n = values.size() - values.size() % kCellBlock - kCellBlock + 100;
+    ASSERT_GT(n, 4 * kCellBlock);
+    ASSERT_LE(n, visible.size());
     for (size_t i = 3 * kCellBlock; i < 4 * kCellBlock; ++i) visible[i] = 0;
     std::vector<uint16_t> cells(n);
     std::vector<CellRange> blocks((n + kCellBlock - 1) / kCellBlock);

@@ -174,6 +174,55 @@ inline int GridIndex(float x, double step, double last) {
   return static_cast<int>(i >= 0.0 ? std::min(i, last) : 0.0);
 }
 
+// The same index in float, for a step of at most 4 binary fractional digits (an image width
+// over 16 columns is one) whose multiples up to the image's size are exact in float: then
+// floor(x / step) is never rounded across an integer (a float x lies at least 2^-24 of its
+// size from the next multiple; the division's rounding is 2^-53), and the reciprocal's guess
+// is corrected by exact products. NaN and negatives go to 0, beyond the image to `last`.
+inline int GridIndexExact(float x, float step, float inverse, float last, float size) {
+  const float clamped = std::min(x >= 0.f ? x : 0.f, size);
+  float i = std::floor(clamped * inverse);
+  i = (i + 1.f) * step <= clamped ? i + 1.f : i;
+  i = i * step > clamped ? i - 1.f : i;
+  return static_cast<int>(std::min(i, last));
+}
+
+// Whether GridIndexExact holds for this step and number of cells.
+bool ExactInFloat(double step, int count) {
+  const double scaled = step * 16.0;
+  return scaled >= 1.0 && scaled == std::floor(scaled) && scaled * (count + 1) < 0x1p24;
+}
+
+// One block's columns and rows (GridIndex or GridIndexExact; inlined into GridCells' variants).
+template <typename IndexX, typename IndexY>
+[[gnu::always_inline]] inline void BlockIndices(const float* __restrict u,
+                                                const float* __restrict v, size_t m, IndexX index_x,
+                                                IndexY index_y, int* __restrict col,
+                                                int* __restrict row) {
+  for (size_t i = 0; i < m; ++i) {
+    col[i] = index_x(u[i]);
+    row[i] = index_y(v[i]);
+  }
+}
+
+// The range of a block's cells in view (integer min and max reductions; a vertex out of view
+// is moved out of reach by arithmetic, which vectorises where a select of it does not).
+[[gnu::always_inline]] inline CellRange BlockRange(const int* __restrict col,
+                                                   const int* __restrict row,
+                                                   const uint8_t* __restrict in_view, size_t m) {
+  constexpr int kFar = 1 << 20;  // beyond any grid's cells
+  int col_min = kFar, col_max = -kFar, row_min = kFar, row_max = -kFar;
+  for (size_t i = 0; i < m; ++i) {
+    const int away = (in_view[i] == 0) * kFar;
+    col_min = std::min(col_min, col[i] + away);
+    col_max = std::max(col_max, col[i] - away);
+    row_min = std::min(row_min, row[i] + away);
+    row_max = std::max(row_max, row[i] - away);
+  }
+  if (col_max < 0) return {};  // nothing in view
+  return {col_min, col_max, row_min, row_max};
+}
+
 }  // namespace
 
 M2S_KERNEL_CLONES
@@ -182,30 +231,35 @@ void GridCells(const float* __restrict u, const float* __restrict v,
                uint16_t* __restrict cells, CellRange* __restrict blocks) {
   const double last_col = grid.cols - 1, last_row = grid.rows - 1;
   const double cell_width = grid.cell_width, cell_height = grid.cell_height;
+  const bool exact = ExactInFloat(cell_width, grid.cols) && ExactInFloat(cell_height, grid.rows);
+  const auto width = static_cast<float>(cell_width), height = static_cast<float>(cell_height);
+  const float inverse_width = 1.f / width, inverse_height = 1.f / height;
+  const auto last_colf = static_cast<float>(last_col), last_rowf = static_cast<float>(last_row);
+  const float image_width = width * static_cast<float>(grid.cols);
+  const float image_height = height * static_cast<float>(grid.rows);
   const int cols = grid.cols;
-  const int rows = grid.rows;
   int col[kCellBlock], row[kCellBlock];
   for (size_t begin = 0; begin < n; begin += kCellBlock) {
     const size_t m = std::min(n - begin, kCellBlock);
-    const float* bu = u + begin;
-    const float* bv = v + begin;
     const uint8_t* in_view = visible + begin;
+    if (exact) {
+      BlockIndices(
+          u + begin, v + begin, m,
+          [&](float x) { return GridIndexExact(x, width, inverse_width, last_colf, image_width); },
+          [&](float y) {
+            return GridIndexExact(y, height, inverse_height, last_rowf, image_height);
+          },
+          col, row);
+    } else {
+      BlockIndices(
+          u + begin, v + begin, m, [&](float x) { return GridIndex(x, cell_width, last_col); },
+          [&](float y) { return GridIndex(y, cell_height, last_row); }, col, row);
+    }
     for (size_t i = 0; i < m; ++i) {
-      col[i] = GridIndex(bu[i], cell_width, last_col);
-      row[i] = GridIndex(bv[i], cell_height, last_row);
       cells[begin + i] =
           in_view[i] != 0 ? static_cast<uint16_t>(row[i] * cols + col[i]) : kNotInView;
     }
-    // The range of the block's cells in view (integer min and max reductions).
-    int col_min = cols, col_max = -1, row_min = rows, row_max = -1;
-    for (size_t i = 0; i < m; ++i) {
-      const bool seen = in_view[i] != 0;
-      col_min = std::min(col_min, seen ? col[i] : cols);
-      col_max = std::max(col_max, seen ? col[i] : -1);
-      row_min = std::min(row_min, seen ? row[i] : rows);
-      row_max = std::max(row_max, seen ? row[i] : -1);
-    }
-    blocks[begin / kCellBlock] = {col_min, col_max, row_min, row_max};
+    blocks[begin / kCellBlock] = BlockRange(col, row, in_view, m);
   }
 }
 
