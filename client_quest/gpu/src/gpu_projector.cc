@@ -22,12 +22,17 @@ constexpr GLuint kMaxGroupsX = 65535;  // GLES 3.1 guaranteed minimum
 // Collect() gives up when the GPU has not finished a frame after this long.
 constexpr GLuint64 kFenceTimeoutNs = 60ull * 1000 * 1000 * 1000;
 
-// Binding points: 0 positions, 1 counter, 2 features, 3 the cull groups in view; texture
-// unit 0 = occlusion depth. Workgroup w projects ids groups[w / 16] * 4096 + (w % 16) * 256 + i.
+// With occlusion, a listed group's footprint in the depth buffer is tested against it before
+// its vertices (up to this many texels; a larger footprint is not tested).
+constexpr int kMaxTestedFootprint = 16384;
+
+// Binding points: 0 positions, 1 counters, 2 features, 3 the cull groups in view, 4 (with
+// occlusion) their footprints; texture unit 0 = occlusion depth. Workgroup w projects ids
+// groups[w / 16] * 4096 + (w % 16) * 256 + i.
 constexpr const char* kComputeShader = R"(
 layout(local_size_x = 256) in;
 layout(std430, binding = 0) readonly buffer Positions { float positions[]; };
-layout(std430, binding = 1) buffer Counter { uint count; };
+layout(std430, binding = 1) buffer Counter { uint count; uint hidden_groups; };
 struct Feature { uint id; float u; float v; float depth; };
 layout(std430, binding = 2) writeonly buffer Features { Feature features[]; };
 layout(std430, binding = 3) readonly buffer Groups { uint groups[]; };
@@ -41,6 +46,28 @@ uniform uint u_capacity;    // entries of features[]
 uniform highp sampler2D u_depth;  // window depth, row 0 = image top
 uniform vec2 u_depth_size;        // depth buffer width, height in texels
 uniform vec2 u_bias;              // relative, absolute (metres)
+// A group's footprint (texels x0, y0, x1, y1, inclusive) and a lower bound of its vertices'
+// camera depth; mode 0: not tested, 1: tested, 2: nothing of it can be in the image.
+struct Footprint { ivec4 box; float min_depth; int mode; int pad0; int pad1; };
+layout(std430, binding = 4) readonly buffer Footprints { Footprint footprints[]; };
+shared bool s_hidden;
+
+// The threshold of the vertex test at a texel: the 3x3 maximum of the buffer around it
+// (clipped to the buffer) as camera depth, with the bias; +inf where a texel is uncovered.
+float Threshold(ivec2 texel) {
+  ivec2 size = ivec2(u_depth_size);
+  ivec2 lo = max(texel - 1, ivec2(0));
+  ivec2 hi = min(texel + 1, size - 1);
+  float d_max = 0.0;
+  for (int y = lo.y; y <= hi.y; ++y) {
+    for (int x = lo.x; x <= hi.x; ++x) d_max = max(d_max, texelFetch(u_depth, ivec2(x, y), 0).r);
+  }
+  if (d_max >= 1.0) return uintBitsToFloat(0x7f800000u);
+  // Window depth -> camera Z (monotonic, so the max commutes with it).
+  float near = u_range.z, far = u_range.w;
+  float z_buffer = near * far / (far - d_max * (far - near));
+  return z_buffer * (1.0 + u_bias.x) + u_bias.y;
+}
 #endif
 
 void main() {
@@ -49,6 +76,33 @@ void main() {
   uint id = slot < u_num_groups
                 ? groups[slot] * 4096u + (workgroup % 16u) * 256u + gl_LocalInvocationIndex
                 : u_num_vertices;
+#ifdef M2S_OCCLUSION
+  // Occlusion culling of the group (the CPU projector's rule): when every texel of its
+  // footprint holds a threshold below the group's smallest depth, no vertex of it passes the
+  // test below. The workgroup's invocations share the texels.
+  int mode = slot < u_num_groups ? footprints[slot].mode : 0;
+  if (gl_LocalInvocationIndex == 0u) s_hidden = mode != 0;
+  memoryBarrierShared();
+  barrier();
+  if (mode == 1) {
+    ivec4 box = footprints[slot].box;
+    float min_depth = footprints[slot].min_depth;
+    int width = box.z - box.x + 1;
+    int area = width * (box.w - box.y + 1);
+    for (int t = int(gl_LocalInvocationIndex); t < area; t += 256) {
+      if (!(Threshold(ivec2(box.x + t % width, box.y + t / width)) < min_depth)) {
+        s_hidden = false;
+        break;
+      }
+    }
+  }
+  memoryBarrierShared();
+  barrier();
+  if (s_hidden) {
+    if (gl_LocalInvocationIndex == 0u && workgroup % 16u == 0u) atomicAdd(hidden_groups, 1u);
+    return;
+  }
+#endif
   bool visible = false;
   float u = 0.0, v = 0.0, z = 0.0;
   if (id < u_num_vertices) {
@@ -66,18 +120,7 @@ void main() {
       // vertex's texel (clipped to the buffer; uncovered texels are +inf, i.e. d == 1).
       ivec2 size = ivec2(u_depth_size);
       ivec2 texel = min(ivec2(floor(vec2(u, v) * u_depth_size / u_range.xy)), size - 1);
-      ivec2 lo = max(texel - 1, ivec2(0));
-      ivec2 hi = min(texel + 1, size - 1);
-      float d_max = 0.0;
-      for (int y = lo.y; y <= hi.y; ++y) {
-        for (int x = lo.x; x <= hi.x; ++x) d_max = max(d_max, texelFetch(u_depth, ivec2(x, y), 0).r);
-      }
-      if (d_max < 1.0) {
-        // Window depth -> camera Z (monotonic, so the max commutes with it).
-        float near = u_range.z, far = u_range.w;
-        float z_buffer = near * far / (far - d_max * (far - near));
-        visible = z <= z_buffer * (1.0 + u_bias.x) + u_bias.y;
-      }
+      visible = z <= Threshold(texel);
     }
 #endif
   }
@@ -172,9 +215,14 @@ Status GpuProjector::Init(const Scene& scene, const ProjectorOptions& options) {
     glBufferData(GL_SHADER_STORAGE_BUFFER,
                  static_cast<GLsizeiptr>(vertex_groups_.size() * sizeof(GLuint)), nullptr,
                  GL_DYNAMIC_DRAW);
+    slot.footprints = MakeGlBuffer();
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, slot.footprints.id());
+    glBufferData(GL_SHADER_STORAGE_BUFFER,
+                 static_cast<GLsizeiptr>(vertex_groups_.size() * sizeof(GroupFootprint)), nullptr,
+                 GL_DYNAMIC_DRAW);
     slot.counter = MakeGlBuffer();
     glBindBuffer(GL_SHADER_STORAGE_BUFFER, slot.counter.id());
-    glBufferData(GL_SHADER_STORAGE_BUFFER, sizeof(GLuint), nullptr, GL_DYNAMIC_READ);
+    glBufferData(GL_SHADER_STORAGE_BUFFER, 2 * sizeof(GLuint), nullptr, GL_DYNAMIC_READ);
     slot.features = MakeGlBuffer();
     glBindBuffer(GL_SHADER_STORAGE_BUFFER, slot.features.id());
     glBufferData(GL_SHADER_STORAGE_BUFFER, static_cast<GLsizeiptr>(features_bytes), nullptr,
@@ -229,9 +277,9 @@ Status GpuProjector::Dispatch(const Pose3& world_from_camera, const Camera& came
     if (Status s = depth_pass_->Render(uniforms, culler, width, height); !s) return s;
   }
   Slot& slot = slots_[next_slot_];
-  const GLuint zero = 0;
+  const GLuint zeros[2] = {0, 0};
   glBindBuffer(GL_SHADER_STORAGE_BUFFER, slot.counter.id());
-  glBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, sizeof(zero), &zero);
+  glBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, sizeof(zeros), zeros);
   // The groups whose box may be in view; only their vertices are dispatched.
   visible_groups_.clear();
   last_vertices_considered_ = 0;
@@ -245,6 +293,31 @@ Status GpuProjector::Dispatch(const Pose3& world_from_camera, const Camera& came
     glBufferSubData(GL_SHADER_STORAGE_BUFFER, 0,
                     static_cast<GLsizeiptr>(visible_groups_.size() * sizeof(GLuint)),
                     visible_groups_.data());
+  }
+  if (depth_pass_ && !visible_groups_.empty()) {
+    // Their footprints in the depth buffer, for the shader's occlusion culling of groups.
+    footprints_.clear();
+    for (const GLuint g : visible_groups_) {
+      const ScreenBox box =
+          culler.Footprint(vertex_groups_[g], depth_pass_->width(), depth_pass_->height());
+      GroupFootprint f;
+      if (box.bounded && box.empty()) {
+        f.mode = 2;  // its box projects outside the buffer
+      } else if (box.bounded && static_cast<int64_t>(box.x1 - box.x0 + 1) * (box.y1 - box.y0 + 1) <=
+                                    kMaxTestedFootprint) {
+        f.mode = 1;
+        f.box = {box.x0, box.y0, box.x1, box.y1};
+        // Rounded down: a lower bound of the vertices' depth in float too.
+        f.min_depth = static_cast<float>(box.min_depth);
+        if (static_cast<double>(f.min_depth) > box.min_depth)
+          f.min_depth = std::nextafter(f.min_depth, 0.f);
+      }
+      footprints_.push_back(f);
+    }
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, slot.footprints.id());
+    glBufferSubData(GL_SHADER_STORAGE_BUFFER, 0,
+                    static_cast<GLsizeiptr>(footprints_.size() * sizeof(GroupFootprint)),
+                    footprints_.data());
   }
   glBindBuffer(GL_SHADER_STORAGE_BUFFER, 0);
 
@@ -270,6 +343,7 @@ Status GpuProjector::Dispatch(const Pose3& world_from_camera, const Camera& came
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, slot.counter.id());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, slot.features.id());
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, slot.groups.id());
+  if (depth_pass_) glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, slot.footprints.id());
   const GLuint workgroups =
       static_cast<GLuint>(visible_groups_.size()) * (kCullGroupSize / kLocalSize);
   if (workgroups > 0) {
@@ -311,14 +385,16 @@ Status GpuProjector::Collect(std::vector<ProjectedVertex>* out, int64_t* tag) {
 
   glBindBuffer(GL_SHADER_STORAGE_BUFFER, slot.counter.id());
   const void* counter =
-      glMapBufferRange(GL_SHADER_STORAGE_BUFFER, 0, sizeof(GLuint), GL_MAP_READ_BIT);
+      glMapBufferRange(GL_SHADER_STORAGE_BUFFER, 0, 2 * sizeof(GLuint), GL_MAP_READ_BIT);
   if (counter == nullptr) {
     glBindBuffer(GL_SHADER_STORAGE_BUFFER, 0);
     return Status::Error("GpuProjector::Collect: mapping the counter failed");
   }
-  GLuint count = 0;
-  std::memcpy(&count, counter, sizeof(count));
+  GLuint counters[2] = {0, 0};
+  std::memcpy(counters, counter, sizeof(counters));
   glUnmapBuffer(GL_SHADER_STORAGE_BUFFER);
+  const GLuint count = counters[0];
+  last_groups_hidden_ = counters[1];
   if (count > capacity_) {
     glBindBuffer(GL_SHADER_STORAGE_BUFFER, 0);
     out->clear();

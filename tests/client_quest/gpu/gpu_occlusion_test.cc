@@ -303,5 +303,49 @@ TEST_F(GpuOcclusionTest, CulledTriangleGroupsChangeNothing) {
   EXPECT_TRUE(sky.empty());
 }
 
+// Occlusion culling of vertex groups: three patches of 4096 vertices (one group each) at
+// z = 5, a wall at z = 2 in front of two of them. The shader skips the two hidden groups
+// after testing their footprints, and the output is the CPU rule's; from the side, where the
+// wall hides nothing, no group is skipped.
+TEST_F(GpuOcclusionTest, GroupsBehindTheDepthBufferAreSkippedAndChangeNothing) {
+  Scene scene;
+  const float patch_x[3] = {-3.f, -1.5f, 1.f};  // the first two behind the wall
+  for (const float x0 : patch_x) {
+    const auto first = static_cast<uint32_t>(scene.positions.size());
+    for (int i = 0; i < 64; ++i) {
+      for (int j = 0; j < 64; ++j)
+        scene.positions.emplace_back(x0 + i / 63.0f, -0.5f + j / 63.0f, 5.0f);
+    }
+    for (uint32_t i = 0; i + 1 < 64; ++i) {
+      for (uint32_t j = 0; j + 1 < 64; ++j) {
+        const uint32_t a = first + 64 * i + j, b = a + 1, c = a + 64, d = c + 1;
+        scene.triangles.insert(scene.triangles.end(), {a, b, d, a, d, c});
+      }
+    }
+  }
+  const auto wall = static_cast<uint32_t>(scene.positions.size());
+  for (const float x : {-10.f, 0.f}) {
+    for (const float y : {-10.f, 10.f}) scene.positions.emplace_back(x, y, 2.0f);
+  }
+  scene.triangles.insert(scene.triangles.end(),
+                         {wall, wall + 1, wall + 3, wall, wall + 3, wall + 2});
+  ASSERT_NO_FATAL_FAILURE(CreateProjectors(scene));
+  const Camera camera = Camera::FromHorizontalFov(640, 480, 90.0, 0.05, 20.0);
+
+  Agreement agreement;
+  ASSERT_NO_FATAL_FAILURE(AddView(LookAt({0, 0, 0}, {0, 0, 5}), camera, &agreement));
+  EXPECT_EQ(gpu_->last_groups_hidden(), 2u);
+  std::set<VertexId> seen = Ids(gpu_out_);
+  for (VertexId id = 0; id < 3 * 4096; ++id) {
+    ASSERT_EQ(seen.count(id), id >= 2 * 4096 ? 1u : 0u) << id;  // all of the third patch
+  }
+  EXPECT_EQ(Ids(cpu_out_), seen) << "the CPU rule keeps the same vertices";
+
+  // From the right, past the wall's edge: every patch in view, none skipped.
+  ASSERT_NO_FATAL_FAILURE(AddView(LookAt({4, 0, 0}, {-1, 0, 5}), camera, &agreement));
+  EXPECT_EQ(gpu_->last_groups_hidden(), 0u);
+  EXPECT_GT(agreement.fraction(), 0.999);
+}
+
 }  // namespace
 }  // namespace m2s

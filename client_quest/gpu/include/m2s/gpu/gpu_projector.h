@@ -18,6 +18,9 @@
 //    whose box may be in view (FrustumCuller, 2 px margin, in double) are listed in a small
 //    storage buffer and only their vertices are dispatched; a culled group holds no vertex the
 //    shader could find in view, so the output is the same as projecting every vertex.
+//    With occlusion, each listed group's footprint in the depth buffer is tested first (by
+//    its workgroups together, the rule below at every texel): a group whose every threshold
+//    lies below its smallest depth cannot keep a vertex and ends there (last_groups_hidden()).
 //  * Per frame only uniforms and that list change. The compute shader transforms each vertex into
 //  camera
 //    coordinates, applies the depth-range and image tests, and compacts the visible ones: each
@@ -123,15 +126,28 @@ class GpuProjector : public Projector {
   // With occlusion: triangles the last Dispatch() drew into the depth buffer (the rest were
   // culled); 0 without.
   size_t last_triangles_drawn() const;
+  // With occlusion: groups of the last Collect()ed frame whose footprint lay wholly behind the
+  // depth buffer (or outside it), so that none of their vertices was tested; 0 without.
+  size_t last_groups_hidden() const { return last_groups_hidden_; }
 
  private:
   struct Slot {
     GlBuffer groups;        // the indices of the groups in view (a uint each)
-    GlBuffer counter;       // one uint
+    GlBuffer footprints;    // with occlusion: theirs (a GroupFootprint each)
+    GlBuffer counter;       // two uints: features written, groups hidden
     GlBuffer features;      // num_vertices * 16 bytes
     void* fence = nullptr;  // GLsync
     int64_t tag = 0;
   };
+
+  // The shader's Footprint (std430): a group's texels, its smallest depth, whether to test.
+  struct GroupFootprint {
+    std::array<int32_t, 4> box = {0, 0, -1, -1};  // x0, y0, x1, y1
+    float min_depth = 0.f;
+    int32_t mode = 0;  // 0: not tested, 1: tested, 2: outside the buffer
+    int32_t pad[2] = {0, 0};
+  };
+  static_assert(sizeof(GroupFootprint) == 32, "GroupFootprint must match the shader's");
 
   GpuProjector() = default;
   Status Init(const Scene& scene, const ProjectorOptions& options);
@@ -145,6 +161,8 @@ class GpuProjector : public Projector {
   std::vector<CullGroup> vertex_groups_;
   std::vector<uint32_t> visible_groups_;  // this frame's, uploaded to the slot's buffer
   size_t last_vertices_considered_ = 0;
+  std::vector<GroupFootprint> footprints_;  // this frame's, as visible_groups_
+  size_t last_groups_hidden_ = 0;
   GlProgram program_;
   std::unique_ptr<GpuDepthPass> depth_pass_;  // null without occlusion
   std::array<Slot, kMaxFramesInFlight> slots_;
