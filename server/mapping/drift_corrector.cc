@@ -153,6 +153,28 @@ DriftCorrector::Retriangulation DriftCorrector::Retriangulate(
   return r;
 }
 
+int DriftCorrector::CountOldPointsInAgreement(KeyframeId keyframe,
+                                              const std::vector<VertexId>& dormant,
+                                              KeyframeId newest_old) const {
+  const std::unordered_set<VertexId> is_dormant(dormant.begin(), dormant.end());
+  const double max_error = kConsistentReprojectionSigmas * model_.pixel_sigma;
+  int count = 0;
+  map_->Read([&](const MapData& m) {
+    const Keyframe* kf = m.keyframe(keyframe);
+    if (kf == nullptr) return;
+    const Pose3 camera_from_world = kf->world_from_camera.Inverse();
+    for (size_t i = 0; i < kf->ids.size(); ++i) {
+      if (is_dormant.count(kf->ids[i])) continue;
+      const MapPoint* p = m.point(kf->ids[i]);
+      if (p == nullptr || p->observers.empty() || p->observers.front() > newest_old) continue;
+      const double error_sq =
+          ReprojectionErrorSq(model_.camera, camera_from_world, p->position, kf->uvs[i]);
+      if (error_sq <= max_error * max_error) ++count;
+    }
+  });
+  return count;
+}
+
 DriftOutcome DriftCorrector::Check(KeyframeId keyframe, const std::vector<VertexId>& dormant) {
   // 1. The image check first: when it settles the question, the re-triangulations (the costly
   // part) are not needed. Mapping is the map's only writer, so the reads below agree with it.
@@ -174,6 +196,13 @@ DriftOutcome DriftCorrector::Check(KeyframeId keyframe, const std::vector<Vertex
   // 3. Their 3-D disagreement.
   last_error_ = DisagreementError(r.new_positions, r.old_positions, r.median_depth);
   if (last_error_ < options_.min_error) return DriftOutcome::kAgree;
+  const int agreeing = CountOldPointsInAgreement(keyframe, dormant, r.newest_old);
+  if (agreeing >= std::max<int>(options_.min_points, static_cast<int>(r.new_positions.size()))) {
+    M2S_LOG(kInfo) << "drift check at keyframe " << keyframe << ": " << r.new_positions.size()
+                   << " re-observed points disagree by " << last_error_ << " of median depth, but "
+                   << agreeing << " old points around them agree: moved, not drift";
+    return DriftOutcome::kAgree;
+  }
   // The keyframes right after a correction still settle (global BA); a second correction of
   // the same loop from them overshoots, so corrections are at least min_keyframe_gap apart.
   if (last_correction_ &&

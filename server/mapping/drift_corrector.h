@@ -9,8 +9,12 @@
 //     frame). Too few recent views yet: kDeferred; enough views but too few points
 //     triangulate: kInconclusive.
 //  3. The 3-D disagreement, as a fraction of the median depth: under DriftOptions::min_error,
-//     kAgree; right after a correction, or implausibly large for drift (a broken recent
-//     estimate), kDeferred.
+//     kAgree. When at least as many other old points in the keyframe (first observed no later
+//     than the dormant ones were last) reproject within the noise, the old map agrees with the
+//     current estimate around them: the dormant points moved (an object moved while out of
+//     view), it is not drift: kAgree (the caller forgets the points that reproject far off).
+//     Right after a correction, or implausibly large for drift (a broken recent estimate),
+//     kDeferred.
 //  4. A Sim3 (Umeyama, outliers trimmed) aligning them to their stored positions; none:
 //     kInconclusive. When it does not halve the 3-D disagreement, or does not halve the old
 //     points' reprojection error in the current keyframe, the disagreement is noise, not
@@ -75,6 +79,10 @@ class DriftCorrector {
   // Median reprojection error of the old points in the keyframe posed as world_from_camera.
   double MedianReprojection(const OldPointsInView& view, const Pose3& world_from_camera) const;
   Retriangulation Retriangulate(KeyframeId keyframe, const std::vector<VertexId>& dormant) const;
+  // The keyframe's points that are not dormant, were first observed at or before
+  // `newest_old`, and reproject into it within the noise (step 3).
+  int CountOldPointsInAgreement(KeyframeId keyframe, const std::vector<VertexId>& dormant,
+                                KeyframeId newest_old) const;
   void Correct(KeyframeId keyframe, const Sim3& old_from_new, KeyframeId newest_old_keyframe);
 
   MeasurementModel model_;

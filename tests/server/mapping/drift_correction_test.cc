@@ -259,5 +259,48 @@ TEST(DriftCorrection, MapperMergesReobservationsUnlessTheCheckIsDeferred) {
   }
 }
 
+// Points that moved while unseen (an object carried away), not drift: the loop has no drift;
+// of the old points its end sees again, those on the left of the image (40 %) are stored
+// 0.3 m off, rigidly, and stay dormant; the others are tracked on (seen through the loop, as
+// the walls around a moved object are) and agree. No correction; the mapper forgets the moved
+// points (they reproject far off) and maps them anew.
+TEST(DriftCorrection, PointsThatMovedWhileUnseenAreNotTakenForDrift) {
+  Options options;
+  Map map;
+  Loop loop = BuildLoop(options, /*drift=*/0.0, RecentViews::kExact, &map);
+  KeyframeCandidate& c = loop.candidate;
+  std::vector<std::pair<double, VertexId>> by_u;
+  for (const VertexId v : c.dormant_points) {
+    const auto it = std::lower_bound(c.features.ids.begin(), c.features.ids.end(), v);
+    by_u.emplace_back(c.features.uvs[static_cast<size_t>(it - c.features.ids.begin())].x(), v);
+  }
+  std::sort(by_u.begin(), by_u.end());
+  c.dormant_points.clear();
+  for (size_t k = 0; k < by_u.size(); ++k) {
+    (k < by_u.size() * 2 / 5 ? c.dormant_points : c.tracked_points).push_back(by_u[k].second);
+  }
+  std::sort(c.dormant_points.begin(), c.dormant_points.end());
+  std::sort(c.tracked_points.begin(), c.tracked_points.end());
+  ASSERT_GE(static_cast<int>(c.dormant_points.size()), options.drift.min_points);
+  map.Write([&](MapData& m) {
+    for (const VertexId v : c.dormant_points) {
+      m.SetPointPosition(v, m.point(v)->position + Eigen::Vector3d(0.3, 0.0, 0.0));
+    }
+  });
+  {
+    Map copy;
+    copy.Write([&](MapData& m) { m = map.Read([](const MapData& d) { return d; }); });
+    InsertCandidate(c, &copy);
+    DriftCorrector corrector(options.measurement(), options.drift, &copy);
+    EXPECT_EQ(corrector.Check(c.id, c.dormant_points), DriftOutcome::kAgree);
+    EXPECT_EQ(copy.correction().epoch, 0u);
+  }
+  LocalMapper mapper(options.measurement(), options.mapper, options.drift, &map);
+  mapper.Process(c);
+  EXPECT_EQ(mapper.stats().loop_corrections, 0);
+  EXPECT_EQ(MergedDormantPoints(map, c), 0);  // forgotten, not merged
+  EXPECT_LT(KeyframeAte(map, loop.truth), 1e-9);
+}
+
 }  // namespace
 }  // namespace m2s::slam
