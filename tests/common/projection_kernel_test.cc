@@ -122,7 +122,6 @@ TEST(GridCellsTest, EveryKindOfFloatGetsFeatureGridCellOfsCellAndBlocksTheirRang
   for (const auto& [width, height] :
        {std::pair{640, 480}, std::pair{1000, 37}, std::pair{480, 500}}) {
     const FeatureGrid grid = FeatureGrid::ForImage(width, height);
-    const GridShape shape{grid.cols, grid.rows, grid.cell_width, grid.cell_height};
     std::mt19937 rng(11);
     std::vector<float> v = values;
     std::shuffle(v.begin(), v.end(), rng);
@@ -135,7 +134,7 @@ TEST(GridCellsTest, EveryKindOfFloatGetsFeatureGridCellOfsCellAndBlocksTheirRang
     for (size_t i = 3 * kCellBlock; i < 4 * kCellBlock; ++i) visible[i] = 0;
     std::vector<uint16_t> cells(n);
     std::vector<CellRange> blocks((n + kCellBlock - 1) / kCellBlock);
-    GridCells(values.data(), v.data(), visible.data(), n, shape, cells.data(), blocks.data());
+    GridCells(values.data(), v.data(), visible.data(), n, grid, cells.data(), blocks.data());
     for (size_t b = 0; b < blocks.size(); ++b) {
       CellRange expected_range{grid.cols, -1, grid.rows, -1};
       for (size_t i = b * kCellBlock; i < std::min(n, (b + 1) * kCellBlock); ++i) {

@@ -101,7 +101,7 @@ void CpuProjector::Impl::TransformChunk(int worker) {
                          all_cells.data() + begin);
     if (balanced) {
       internal::GridCells(all_u.data() + begin, all_v.data() + begin, all_visible.data() + begin, n,
-                          grid_shape(), all_grid_cells.data() + begin,
+                          grid, all_grid_cells.data() + begin,
                           all_blocks.data() + begin / internal::kCellBlock);
     }
   }
@@ -119,7 +119,8 @@ void CpuProjector::Impl::SelectTriangles(int worker, int num_workers) {
     const size_t n = group.end - group.begin;
     if (s.keep.size() < n) s.keep.resize(n);
     const uint32_t* first = &triangles[3 * size_t{group.begin}];
-    if (GroupInFront(box)) {
+    const bool in_front = GroupInFront(box);
+    if (in_front) {
       internal::MayCoverPixelCentres(first, n, all_cells.data(), s.keep.data());
     } else {
       internal::MayCoverPixelCentresOrCrossNear(first, n, all_cells.data(), all_depth.data(),
@@ -146,7 +147,7 @@ void CpuProjector::Impl::SelectTriangles(int worker, int num_workers) {
     s.survivors.resize(survivors_begin + count);
     SurvivorRange& range = triangle_survivors[k];
     range.worker = worker;
-    range.in_front = GroupInFront(box);
+    range.in_front = in_front;
     if (range.in_front) {  // drawn from their screen corners, found here once for all bands
       range.begin = static_cast<uint32_t>(s.in_front.size());
       s.in_front.resize(range.begin + count);

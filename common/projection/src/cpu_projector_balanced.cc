@@ -138,8 +138,8 @@ void CpuProjector::Impl::BalancedChunk(int worker) {
       internal::TransformVertices(constants, x.data() + begin, y.data() + begin, z.data() + begin,
                                   n, s.group_u.data(), s.group_v.data(), s.group_depth.data(),
                                   s.group_visible.data());
-      internal::GridCells(s.group_u.data(), s.group_v.data(), s.group_visible.data(), n,
-                          grid_shape(), s.group_grid_cells.data(), s.group_blocks.data());
+      internal::GridCells(s.group_u.data(), s.group_v.data(), s.group_visible.data(), n, grid,
+                          s.group_grid_cells.data(), s.group_blocks.data());
       const size_t before = h.visited;
       VisitByRank(k, s.group_u.data(), s.group_v.data(), s.group_depth.data(),
                   s.group_grid_cells.data(), s.group_blocks.data(), h);

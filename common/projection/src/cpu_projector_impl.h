@@ -194,9 +194,6 @@ struct CpuProjector::Impl {
   // Makes vertex group g's rank order unless it is made (a worker's own groups only).
   void PrepareRankOrder(size_t g, WorkerScratch& s);
   void BalancedChunk(int worker);
-  internal::GridShape grid_shape() const {
-    return {grid.cols, grid.rows, grid.cell_width, grid.cell_height};
-  }
   // Visits visible group k's blocks of kCellBlock vertices, each in rank order until none of
   // its other vertices can enter a heap (u, v, depth, grid cells indexed by offset in the
   // group; blocks: the groups' GridCells ranges).

@@ -15,6 +15,7 @@
 #include <Eigen/Core>
 
 #include "m2s/common/camera.h"
+#include "m2s/common/feature_rank.h"
 #include "m2s/common/frustum_culling.h"
 #include "m2s/common/geometry.h"
 #include "m2s/common/types.h"
@@ -140,11 +141,6 @@ void MayCoverPixelCentres(const uint32_t* triangles, size_t n, const uint32_t* c
 void MayCoverPixelCentresOrCrossNear(const uint32_t* triangles, size_t n, const uint32_t* cells,
                                      const float* depth, float near, uint8_t* keep);
 
-// A FeatureGrid's shape, for GridCells.
-struct GridShape {
-  int cols = 1, rows = 1;
-  double cell_width = 1.0, cell_height = 1.0;
-};
 // Grid cells [x0, x1] x [y0, y1] (inclusive; empty when x0 > x1).
 struct CellRange {
   int x0 = 0, x1 = -1, y0 = 0, y1 = -1;
@@ -158,7 +154,7 @@ inline constexpr size_t kCellBlock = 256;
 // than kNotInView cells.
 inline constexpr uint16_t kNotInView = 0xFFFF;
 void GridCells(const float* u, const float* v, const uint8_t* visible, size_t n,
-               const GridShape& grid, uint16_t* cells, CellRange* blocks);
+               const FeatureGrid& grid, uint16_t* cells, CellRange* blocks);
 
 // Appends (first_id + i, u[i], v[i], depth[i]) for every i < n with visible[i] to `out`,
 // which must have room for n + 1 entries; returns the number written.

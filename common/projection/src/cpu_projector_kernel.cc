@@ -227,7 +227,7 @@ template <typename IndexX, typename IndexY>
 
 M2S_KERNEL_CLONES
 void GridCells(const float* __restrict u, const float* __restrict v,
-               const uint8_t* __restrict visible, size_t n, const GridShape& grid,
+               const uint8_t* __restrict visible, size_t n, const FeatureGrid& grid,
                uint16_t* __restrict cells, CellRange* __restrict blocks) {
   const double last_col = grid.cols - 1, last_row = grid.rows - 1;
   const double cell_width = grid.cell_width, cell_height = grid.cell_height;
