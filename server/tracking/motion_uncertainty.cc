@@ -63,4 +63,42 @@ std::optional<MotionUncertainty> TwoViewMotionUncertainty(
   return out;
 }
 
+double PoseCentreSigma(const Camera& camera, double pixel_sigma, const Pose3& camera_from_world,
+                       const std::vector<Eigen::Vector3d>& points_world) {
+  // x_c = R (X - C): d x_c / d theta = -[x_c]x (rotation perturbed on the left), d x_c / d C = -R.
+  const Eigen::Matrix3d r = camera_from_world.RotationMatrix();
+  Eigen::Matrix<double, 6, 6> information = Eigen::Matrix<double, 6, 6>::Zero();
+  int used = 0;
+  for (const Eigen::Vector3d& x : points_world) {
+    const Eigen::Vector3d p = camera_from_world * x;
+    if (!(p.z() > 0.0)) continue;
+    const double iz = 1.0 / p.z();
+    Eigen::Matrix<double, 2, 3> projection;
+    projection << camera.fx * iz, 0.0, -camera.fx * p.x() * iz * iz, 0.0, camera.fy * iz,
+        -camera.fy * p.y() * iz * iz;
+    Eigen::Matrix3d p_hat;
+    p_hat << 0.0, -p.z(), p.y(), p.z(), 0.0, -p.x(), -p.y(), p.x(), 0.0;
+    Eigen::Matrix<double, 3, 6> dp_dpose;
+    dp_dpose << -p_hat, -r;
+    const Eigen::Matrix<double, 2, 6> j = projection * dp_dpose;
+    information += j.transpose() * j;
+    ++used;
+  }
+  if (used < 3 || !(pixel_sigma > 0.0)) return INFINITY;
+  information /= pixel_sigma * pixel_sigma;
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>> eig(information);
+  // Rank-deficient (within rounding): some direction of the pose is not observed.
+  if (eig.info() != Eigen::Success ||
+      !(eig.eigenvalues().minCoeff() > 1e-12 * eig.eigenvalues().maxCoeff())) {
+    return INFINITY;
+  }
+  const Eigen::Matrix<double, 6, 6> covariance = eig.eigenvectors() *
+                                                 eig.eigenvalues().cwiseInverse().asDiagonal() *
+                                                 eig.eigenvectors().transpose();
+  return std::sqrt(
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(covariance.bottomRightCorner<3, 3>())
+          .eigenvalues()
+          .maxCoeff());
+}
+
 }  // namespace m2s::slam

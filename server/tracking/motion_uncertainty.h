@@ -1,7 +1,8 @@
-// How well two views determine their relative motion: the standard deviations of the rotation
-// and of the translation's direction for a given image noise, from the points' geometry alone
-// (independent of residuals, so exact and noisy data are judged alike). The initialiser refuses
-// motions that are not determined (docs/design/two_view_initialisation.md).
+// How well views determine camera motion, from the points' geometry alone (independent of
+// residuals, so exact and noisy data are judged alike): the standard deviations of two views'
+// relative rotation and translation direction (the initialiser refuses motions that are not
+// determined, docs/design/two_view_initialisation.md), and of a camera centre solved from
+// known points (the tracker loses a frame whose centre its points leave undetermined).
 #pragma once
 
 #include <optional>
@@ -26,5 +27,12 @@ struct MotionUncertainty {
 std::optional<MotionUncertainty> TwoViewMotionUncertainty(
     const Camera& camera, double pixel_sigma, const Pose3& camera1_from_camera0,
     const std::vector<Eigen::Vector3d>& points_camera0);
+
+// Largest standard deviation (world units) of a camera's centre solved from known points, its
+// rotation unknown too, for image noise `pixel_sigma` on their projections: the position block
+// of the inverse of the pose's Fisher information. Infinity when the points leave the pose
+// undetermined (fewer than 3 in front of the camera, or all on one ray).
+double PoseCentreSigma(const Camera& camera, double pixel_sigma, const Pose3& camera_from_world,
+                       const std::vector<Eigen::Vector3d>& points_world);
 
 }  // namespace m2s::slam

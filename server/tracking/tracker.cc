@@ -36,6 +36,8 @@ constexpr double kMovedPointFactor = 4.0;
 // Keyframes for unmapped features need some baseline (fraction of keyframe_baseline_ratio),
 // or the same features would ask for a keyframe on every frame.
 constexpr double kNewPointsBaselineFraction = 0.5;
+// Camera speed for rotation-only tracking: measured over at least this long (s).
+constexpr double kSpeedWindowS = 0.25;
 
 }  // namespace
 
@@ -109,6 +111,20 @@ void Tracker::Start(KeyframeId keyframe, const Pose3& world_from_camera, int num
   reference_points_ = num_points;
   last_keyframe_time_ = timestamp;
   last_keyframe_median_depth_ = median_depth;
+  measured_.clear();
+  measured_speed_ = 0.0;
+  RecordMeasuredCentre(timestamp, world_from_camera.translation());
+}
+
+void Tracker::RecordMeasuredCentre(double timestamp, const Eigen::Vector3d& centre) {
+  measured_.push_back({timestamp, centre});
+  while (measured_.size() > 2 && timestamp - measured_[1].timestamp >= kSpeedWindowS) {
+    measured_.pop_front();
+  }
+  const MeasuredCentre& oldest = measured_.front();
+  // The speed stays that of the last window until a new one spans enough time.
+  if (timestamp - oldest.timestamp >= kSpeedWindowS)
+    measured_speed_ = (centre - oldest.centre).norm() / (timestamp - oldest.timestamp);
 }
 
 void Tracker::StartLost() {
@@ -125,6 +141,8 @@ void Tracker::Reset() {
   reference_kf_.reset();
   reference_features_ = SortedFeatures();
   reference_points_ = 0;
+  measured_.clear();
+  measured_speed_ = 0.0;
 }
 
 void Tracker::Associate(const SortedFeatures& features, Association* a) const {
@@ -308,6 +326,8 @@ TrackerOutput Tracker::Track(int64_t seq, double timestamp, const SortedFeatures
     reference_world_from_camera_ =
         correction.new_from_old.TransformPose(reference_world_from_camera_);
     last_keyframe_median_depth_ *= correction.new_from_old.scale();
+    for (MeasuredCentre& m : measured_) m.centre = correction.new_from_old * m.centre;
+    measured_speed_ *= correction.new_from_old.scale();
   }
 
   Association a;
@@ -315,17 +335,34 @@ TrackerOutput Tracker::Track(int64_t seq, double timestamp, const SortedFeatures
   Pose3 camera_from_world;
   std::vector<bool> inlier;
   bool ok = false;
-  if (!lost_) ok = TrackWithModel(a, &camera_from_world, &inlier);
+  if (!lost_) {
+    ok = TrackWithModel(a, &camera_from_world, &inlier) &&
+         PoseDetermined(a, inlier, camera_from_world);
+  }
   bool relocalised = false;
   if (!ok) {
     ok = Relocalise(a, &camera_from_world, &inlier);
+    // PnP's pose, refined on its own inliers, seeds tracking on every associated point (the
+    // well-constrained ones when there are enough, dormant ones weighed): what the next frame
+    // would do from it, done on this one.
+    if (ok) {
+      last_camera_from_world_ = camera_from_world;
+      velocity_ = Pose3::Identity();
+      Pose3 tracked;
+      std::vector<bool> tracked_inlier;
+      if (TrackWithModel(a, &tracked, &tracked_inlier)) {
+        camera_from_world = tracked;
+        inlier = std::move(tracked_inlier);
+      }
+      ok = PoseDetermined(a, inlier, camera_from_world);
+    }
     relocalised = ok && lost_;
   }
   bool rotation_only = false;
   bool rotation_keyframe = false;
   if (!ok && !lost_) {
     ok = rotation_only =
-        TrackRotationOnly(features, a, &camera_from_world, &inlier, &rotation_keyframe);
+        TrackRotationOnly(timestamp, features, a, &camera_from_world, &inlier, &rotation_keyframe);
   }
   if (!ok) {
     lost_ = true;
@@ -334,6 +371,13 @@ TrackerOutput Tracker::Track(int64_t seq, double timestamp, const SortedFeatures
     return out;
   }
   velocity_ = lost_ ? Pose3::Identity() : camera_from_world * last_camera_from_world_.Inverse();
+  if (rotation_only) {
+    measured_gap_ = true;
+  } else {
+    if (lost_ || measured_gap_) measured_.clear();
+    measured_gap_ = false;
+    RecordMeasuredCentre(timestamp, camera_from_world.Inverse().translation());
+  }
   lost_ = false;
   last_camera_from_world_ = camera_from_world;
   out.state = relocalised ? TrackingState::kRelocalized : TrackingState::kOk;

@@ -21,6 +21,7 @@
 //   TrackerOutput out = tracker.Track(seq, timestamp, features, /*mapping_busy=*/false);
 #pragma once
 
+#include <deque>
 #include <optional>
 #include <unordered_map>
 #include <vector>
@@ -116,10 +117,19 @@ class Tracker {
   bool TrackWithModel(const Association& a, Pose3* camera_from_world, std::vector<bool>* inlier);
   bool Relocalise(const Association& a, Pose3* camera_from_world, std::vector<bool>* inlier);
   // Pure rotation since the reference keyframe (tracking/rotation_only.h), tried when the map
-  // points in view are too few and the camera has not moved since that keyframe. Sets
-  // `*keyframe` when the frame shares less than half of the keyframe's features.
-  bool TrackRotationOnly(const SortedFeatures& features, const Association& a,
+  // points in view are too few. The pose keeps the keyframe's centre, so it is refused once
+  // the camera may be further from it than kRotationOnlyMaxShift of the keyframe's median depth
+  // (the last measured centre's distance from it, plus the last measured speed times the time
+  // since): a rotation fit of a translating camera would freeze it in place. Sets `*keyframe`
+  // when the frame shares less than half of the keyframe's features.
+  bool TrackRotationOnly(double timestamp, const SortedFeatures& features, const Association& a,
                          Pose3* camera_from_world, std::vector<bool>* inlier, bool* keyframe);
+  // Adds a measured camera centre and updates measured_speed_.
+  void RecordMeasuredCentre(double timestamp, const Eigen::Vector3d& centre);
+  // Whether the inliers determine the pose's centre (its standard deviation for pixel_sigma
+  // noise within kMaxCentreSigmaFraction of their median depth; tracker_recovery.cc).
+  bool PoseDetermined(const Association& a, const std::vector<bool>& inlier,
+                      const Pose3& camera_from_world) const;
   // Inliers a pose classified on `num_points` associated points needs:
   // TrackerOptions::min_inliers, or in a sparse view (fewer points) 75 % of them and at least
   // `floor` (tracker_internal.h says which floor serves which pose).
@@ -150,6 +160,16 @@ class Tracker {
   int reference_points_ = 0;
   double last_keyframe_time_ = 0.0;
   double last_keyframe_median_depth_ = 1.0;
+  // Camera centres of the last consecutive frames measured from map points (not
+  // rotation-only), over kSpeedWindowS: their displacement gives the speed rotation-only
+  // tracking is judged by (over one frame, pose noise would pass for motion).
+  struct MeasuredCentre {
+    double timestamp;
+    Eigen::Vector3d centre;
+  };
+  std::deque<MeasuredCentre> measured_;
+  double measured_speed_ = 0.0;  // m/s, 0 while not known
+  bool measured_gap_ = false;    // rotation-only frames since the last measured one
   // The reference keyframe's features, for rotation-only tracking while it waits for mapping.
   SortedFeatures reference_features_;
   // Consecutive tracked frames in which each associated map point was a pose outlier.

@@ -1,5 +1,6 @@
 // Tracker recovery: relocalisation by PnP + RANSAC on exact associations, rotation-only
-// tracking while the camera turns towards unmapped space, and the inliers a view needs.
+// tracking while the camera turns towards unmapped space, the inliers a view needs, and whether
+// they determine the pose.
 #include "tracking/tracker.h"
 
 #include <algorithm>
@@ -11,6 +12,7 @@
 #include <opencv2/core/eigen.hpp>
 
 #include "m2s/common/logging.h"
+#include "tracking/motion_uncertainty.h"
 #include "tracking/rotation_only.h"
 #include "tracking/tracker_internal.h"
 
@@ -29,6 +31,14 @@ constexpr double kPnpThresholdSigmas = 4.0;
 // Rotation-only tracking: a keyframe when the frame shares less than this fraction of the
 // reference keyframe's features (the view has turned away from it).
 constexpr double kRotationKeyframeOverlap = 0.5;
+// Rotation-only tracking: at most this shift of the camera from the reference keyframe's centre
+// (fraction of the keyframe's median depth). A head turning in place moves its eyes by
+// centimetres; a drone yawing in flight leaves its centre at once.
+constexpr double kRotationOnlyMaxShift = 0.02;
+// A pose's centre must be known to this standard deviation (fraction of the median depth of its
+// inliers), or the frame is lost: a few points bunched at the edge of a view fit poses
+// decimetres apart within the noise.
+constexpr double kMaxCentreSigmaFraction = 0.05;
 
 // camera_from_world by PnP + RANSAC (OpenCV); nullopt when RANSAC finds no pose or OpenCV
 // throws on degenerate input (logged: a failed relocalisation, never a thrown frame).
@@ -96,11 +106,18 @@ bool Tracker::Relocalise(const Association& a, Pose3* camera_from_world,
   return classified >= required && 2 * classified >= n;
 }
 
-bool Tracker::TrackRotationOnly(const SortedFeatures& features, const Association& a,
-                                Pose3* camera_from_world, std::vector<bool>* inlier,
-                                bool* keyframe) {
+bool Tracker::TrackRotationOnly(double timestamp, const SortedFeatures& features,
+                                const Association& a, Pose3* camera_from_world,
+                                std::vector<bool>* inlier, bool* keyframe) {
   if (!reference_kf_ || !a.reference_pose) return false;
   const double max_error_px = std::sqrt(kChi2TwoDof95) * model_.pixel_sigma;
+  // The pose keeps the reference keyframe's centre: off by how far the last measured pose was
+  // from it, and by how far the camera has moved since, at its last measured speed.
+  if (measured_.empty()) return false;
+  const double since = std::max(0.0, timestamp - measured_.back().timestamp);
+  const double moved =
+      (measured_.back().centre - a.reference_pose->translation()).norm() + measured_speed_ * since;
+  if (moved > kRotationOnlyMaxShift * last_keyframe_median_depth_) return false;
   std::optional<RotationOnlyPose> r;
   size_t keyframe_features = 0;
   map_->Read([&](const MapData& m) {
@@ -124,6 +141,26 @@ bool Tracker::TrackRotationOnly(const SortedFeatures& features, const Associatio
   *camera_from_world = r->camera_from_world;
   *keyframe = r->inliers < kRotationKeyframeOverlap * static_cast<double>(keyframe_features);
   return true;
+}
+
+bool Tracker::PoseDetermined(const Association& a, const std::vector<bool>& inlier,
+                             const Pose3& camera_from_world) const {
+  std::vector<size_t> used;
+  for (size_t i = 0; i < inlier.size(); ++i) {
+    if (inlier[i]) used.push_back(i);
+  }
+  if (used.empty()) return false;
+  // Dense views: an even subset, its information scaled up to the whole (as if its noise were
+  // that much smaller). The points' own uncertainty is left out: shared by the points of one
+  // map, it moves the pose with them, and young maps would lose every frame.
+  const std::vector<size_t> subset =
+      EvenlySpacedIndices(used.size(), static_cast<size_t>(options_.max_points));
+  std::vector<Eigen::Vector3d> points;
+  for (const size_t k : subset) points.push_back(a.points[used[k]]);
+  const double noise = model_.pixel_sigma * std::sqrt(static_cast<double>(subset.size()) /
+                                                      static_cast<double>(used.size()));
+  const double sigma = PoseCentreSigma(model_.camera, noise, camera_from_world, points);
+  return sigma <= kMaxCentreSigmaFraction * MedianDepth(camera_from_world, points);
 }
 
 int Tracker::RequiredInliers(int num_points, int floor) const {

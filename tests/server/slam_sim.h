@@ -3,6 +3,7 @@
 // aligned ATE computed independently of the library (Umeyama on camera centres).
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <optional>
@@ -159,6 +160,46 @@ inline AteResult ComputeAte(const std::vector<TrajectoryEntry>& trajectory) {
   r.rmse = std::sqrt(sse / static_cast<double>(est.size()));
   r.truth_from_estimate = *s;
   return r;
+}
+
+// A map's tracked entries (kOk / kRelocalized, with ground truth) and their centres' errors
+// after the similarity that aligns the estimate with the truth over those before
+// `align_before_seq` (a stretch whose poses are trusted): an independent look at the frames
+// after it. `aligned_on` is 0 when fewer than 3 entries came before it.
+struct ErrorsAfter {
+  std::vector<TrajectoryEntry> entries;
+  std::vector<double> errors;  // metres, one per entry
+  size_t aligned_on = 0;
+  double worst() const {
+    double w = 0.0;
+    for (const double e : errors) w = std::max(w, e);
+    return w;
+  }
+};
+inline ErrorsAfter ErrorsAlignedBefore(const std::vector<TrajectoryEntry>& trajectory, int map_id,
+                                       int64_t align_before_seq) {
+  ErrorsAfter out;
+  std::vector<Eigen::Vector3d> est, truth;
+  for (const TrajectoryEntry& e : trajectory) {
+    if (e.map_id != map_id ||
+        (e.state != TrackingState::kOk && e.state != TrackingState::kRelocalized) ||
+        !e.ground_truth_world_from_camera) {
+      continue;
+    }
+    out.entries.push_back(e);
+    if (e.seq >= align_before_seq) continue;
+    est.push_back(e.world_from_camera.translation());
+    truth.push_back(e.ground_truth_world_from_camera->translation());
+  }
+  const auto s = est.size() >= 3 ? AlignPoints(est, truth, /*with_scale=*/true) : std::nullopt;
+  if (!s) return out;
+  out.aligned_on = est.size();
+  for (const TrajectoryEntry& e : out.entries) {
+    out.errors.push_back(
+        ((*s) * e.world_from_camera.translation() - e.ground_truth_world_from_camera->translation())
+            .norm());
+  }
+  return out;
 }
 
 inline Options DefaultOptions(const Camera& camera) {

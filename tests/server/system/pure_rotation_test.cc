@@ -2,7 +2,9 @@
 // the scene the map never saw (a head looking around) must keep its pose. New features have
 // no parallax there, so the map cannot grow until the camera moves again; the rotation is
 // fitted to the bearings the frame shares with the reference keyframe.
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <optional>
 #include <vector>
 
@@ -87,6 +89,45 @@ TEST(PureRotation, TurningTowardsAnUnmappedWallKeepsTracking) {
     turned += e.timestamp > kWalkS + 0.75 * kTurnS ? 1 : 0;
   }
   EXPECT_GT(turned, 10);  // the far end of the turn, where no mapped point is in view
+}
+
+// A quick turn made while the camera keeps walking (a drone yawing in flight): the bearings to
+// the reference keyframe fit a rotation about a fixed centre for a while, but the camera is not
+// there. Every frame that gets a pose must be near the truth; frames the map cannot place are
+// lost.
+TEST(PureRotation, TurningWhileWalkingIsNeverFrozenInPlace) {
+  const Scene scene = MakePointRoom(3000);
+  const Camera camera;
+  SimOptions sim;
+  sim.budget = 0;
+  sim.occlusion = false;
+  constexpr double kSpeed = 0.3;       // m/s, along x (with a slight sway: a non-degenerate path)
+  constexpr double kQuickTurnS = 0.5;  // 180 degrees
+  std::vector<TimedPose> poses;
+  for (int i = 0; i < static_cast<int>((kWalkS + kQuickTurnS + 1.0) * kFps); ++i) {
+    const double t = i / kFps;
+    const double x = -0.3 + kSpeed * t;
+    const double yaw = M_PI * std::clamp((t - kWalkS) / kQuickTurnS, 0.0, 1.0);
+    const Eigen::Vector3d eye(x, 0.1 * std::sin(t), 1.5 + 0.05 * std::sin(3.0 * t));
+    poses.push_back({t, LookAt(eye, eye + Forward(yaw), Eigen::Vector3d::UnitZ())});
+  }
+  auto truth = Trajectory::FromPoses(std::move(poses));
+  ASSERT_TRUE(truth.ok()) << truth.error();
+  const std::vector<Frame> frames = ProjectFrames(scene, *truth, camera, sim);
+  auto system = System::Create(DefaultOptions(camera));
+  ASSERT_TRUE(system.ok()) << system.error();
+  for (const Frame& frame : frames) (*system)->Track(frame);
+  // The first map's frames, in the truth's frame by the similarity of its frames before the
+  // turn (exact features: those poses are exact).
+  const testing::ErrorsAfter first_map = testing::ErrorsAlignedBefore(
+      (*system)->Trajectory(), /*map_id=*/0, static_cast<int64_t>(kWalkS * kFps));
+  ASSERT_GE(first_map.aligned_on, 10u);
+  // A rotation-only pose is off by the distance walked since the last measured one: at most
+  // 2 % of the keyframe's median depth (2.5 m), 5 cm, by the tracker's rule. Measured: 4.4 cm;
+  // frozen in place without the rule, 13 cm.
+  std::printf("worst centre error of the first map: %.4f m over %zu frames\n", first_map.worst(),
+              first_map.entries.size());
+  EXPECT_LT(first_map.worst(), 0.06);
 }
 
 // Bearings of random points seen from two cameras: `moved` shifts the second one's centre.

@@ -12,6 +12,7 @@
 #include <Eigen/Dense>
 
 #include "tracking/initializer.h"
+#include "tracking/motion_uncertainty.h"
 
 namespace m2s::slam {
 namespace {
@@ -363,6 +364,59 @@ TEST(InitializerGeometry, MotionUncertaintyMatchesNumericalInformation) {
                     .maxCoeff());
   EXPECT_NEAR(analytic->rotation_rad, rotation_sigma, 1e-3 * rotation_sigma);
   EXPECT_NEAR(analytic->direction_rad, direction_sigma, 1e-3 * direction_sigma);
+}
+
+// A camera centre's standard deviation against an independent computation: the Jacobian of every
+// reprojection residual with respect to a rotation vector and the centre, by central
+// differences, and the centre's 3 x 3 block of (J^T J)^-1. Points on one ray leave it unknown.
+TEST(InitializerGeometry, PoseCentreSigmaMatchesNumericalInformation) {
+  const Camera camera;
+  Uniform u(11);
+  std::vector<Eigen::Vector3d> points;
+  for (int i = 0; i < 12; ++i) {
+    const double z = u(1.0, 4.0);
+    points.emplace_back(0.2 * u(-1, 1) * z + 0.5, 0.15 * u(-1, 1) * z, z);
+  }
+  const Eigen::Vector3d centre(0.1, -0.2, 0.3);
+  const Eigen::Matrix3d rotation =
+      Eigen::AngleAxisd(0.2, Eigen::Vector3d(0.1, 1.0, 0.3).normalized()).toRotationMatrix();
+  const Pose3 camera_from_world(Eigen::Quaterniond(rotation), -(rotation * centre));
+  const double sigma = 0.8;
+  const double analytic = PoseCentreSigma(camera, sigma, camera_from_world, points);
+
+  const int n = static_cast<int>(points.size());
+  auto residuals = [&](const Eigen::Matrix<double, 6, 1>& x) {
+    const Eigen::Vector3d w = x.head<3>();
+    const Eigen::Matrix3d r =
+        (w.norm() > 0 ? Eigen::AngleAxisd(w.norm(), w.normalized()).toRotationMatrix()
+                      : Eigen::Matrix3d::Identity()) *
+        rotation;
+    Eigen::VectorXd res(2 * n);
+    for (int i = 0; i < n; ++i)
+      res.segment<2>(2 * i) = camera.Project(r * (points[i] - centre - x.tail<3>())) / sigma;
+    return res;
+  };
+  Eigen::MatrixXd jacobian(2 * n, 6);
+  const double h = 1e-6;
+  for (int k = 0; k < 6; ++k) {
+    Eigen::Matrix<double, 6, 1> plus = Eigen::Matrix<double, 6, 1>::Zero(), minus = plus;
+    plus(k) = h;
+    minus(k) = -h;
+    jacobian.col(k) = (residuals(plus) - residuals(minus)) / (2.0 * h);
+  }
+  const Eigen::MatrixXd covariance = (jacobian.transpose() * jacobian).inverse();
+  const double numerical =
+      std::sqrt(Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(covariance.bottomRightCorner<3, 3>())
+                    .eigenvalues()
+                    .maxCoeff());
+  EXPECT_NEAR(analytic, numerical, 1e-4 * numerical);
+
+  std::vector<Eigen::Vector3d> on_a_ray;
+  for (int i = 1; i <= 5; ++i)
+    on_a_ray.push_back(centre + 0.7 * i * Eigen::Vector3d(0.1, 0.2, 1.0));
+  EXPECT_TRUE(std::isinf(PoseCentreSigma(camera, sigma, camera_from_world, on_a_ray)));
+  EXPECT_TRUE(
+      std::isinf(PoseCentreSigma(camera, sigma, camera_from_world, {points[0], points[1]})));
 }
 
 }  // namespace
