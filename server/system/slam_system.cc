@@ -392,6 +392,12 @@ void SlamSystem::Reset() {
   runner_.Exclusive([this] { ResetLocked(/*keep_localization_only=*/false); });
 }
 
+void SlamSystem::RefineMap() {
+  runner_.Exclusive([this] {
+    if (!localization_only_) mapper_.GlobalBundleAdjust(kFinalBaIterations, /*max_points=*/0);
+  });
+}
+
 Status SlamSystem::SaveMap(const std::string& path) const {
   return map_.Save(path, options_.camera);
 }

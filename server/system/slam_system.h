@@ -50,6 +50,7 @@ class SlamSystem final : public System {
   std::vector<TrajectoryEntry> Trajectory() const override;
   SystemStats Stats() const override;
   void Reset() override;
+  void RefineMap() override;
   Status SaveMap(const std::string& path) const override;
   Status LoadMap(const std::string& path) override;
   void Shutdown() override;

@@ -45,6 +45,8 @@ inline bool IsYoungMap(size_t keyframes, int tracked_in_map) {
 }
 // Iterations of the global bundle adjustment that refines two maps after a merge.
 constexpr int kMergeBaIterations = 15;
+// System::RefineMap: iterations of the global bundle adjustment over every keyframe and point.
+constexpr int kFinalBaIterations = 20;
 
 inline bool HasPose(TrackingState state) {
   return state == TrackingState::kOk || state == TrackingState::kRelocalized;

@@ -251,6 +251,7 @@ Expected<RunMetrics> RunAccuracy(const Scene& scene, const Sequence& sequence,
   }
   m.wall_s = std::chrono::duration<double>(Clock::now() - start).count();
   CountResults(results, times_ms, visible, config.min_visible_for_lost, &m);
+  if (config.refine_map) system.RefineMap();
   Evaluate(scene, *ground_truth, system, results, config.dump_prefix, &m);
   system.Shutdown();
   return m;

@@ -33,6 +33,9 @@ struct RunConfig {
   // Frames without a pose after initialisation count as untracked only when at least this many
   // vertices are visible; the others are counted apart (RunMetrics::untracked_few_visible).
   int min_visible_for_lost = 0;
+  // System::RefineMap() once every frame is tracked: the final trajectory and the map error
+  // are measured after it (the online ATE, on the poses Track() returned, is not affected).
+  bool refine_map = true;
   // When set, the Sim3-aligned final trajectory and the ground truth of the tracked frames are
   // written there as TUM files (<prefix>_estimate.tum, <prefix>_truth.tum).
   std::string dump_prefix;

@@ -155,6 +155,13 @@ class System {
   virtual Status SaveMap(const std::string& path) const = 0;
   virtual Status LoadMap(const std::string& path) = 0;
 
+  // Refines the whole current map by a global bundle adjustment (every keyframe and point, as
+  // at the end of a session; the trajectory follows its keyframes, the poses Track() returned
+  // stay as they were). Tracking may go on. Systems without a map of their own (a plug-in
+  // method, a map group's agent) and a loaded map tracked in localisation-only mode are left
+  // as they are.
+  virtual void RefineMap() {}
+
   // Stops every thread (queued frames are discarded); idempotent, also done by the destructor.
   virtual void Shutdown() = 0;
 };
