@@ -180,6 +180,11 @@ class PySystem {
     std::lock_guard<std::mutex> lock(track_mutex_);
     system_->Reset();
   }
+  void RefineMap() {
+    py::gil_scoped_release release;
+    std::lock_guard<std::mutex> lock(track_mutex_);
+    system_->RefineMap();
+  }
   void SaveMap(const std::string& path) const {
     if (Status s = system_->SaveMap(path); !s) RaiseRuntimeError(s);
   }
@@ -236,6 +241,9 @@ void RegisterSlam(py::module_& m) {
            "uint32, positions (N,3) float32).")
       .def("stats", &PySystem::Stats)
       .def("reset", &PySystem::Reset)
+      .def("refine_map", &PySystem::RefineMap,
+           "A global bundle adjustment of the whole map, as at the end of a session "
+           "(System::RefineMap): trajectory() and map_points() follow it.")
       .def("save_map", &PySystem::SaveMap, py::arg("path"))
       .def("load_map", &PySystem::LoadMap, py::arg("path"))
       .def("shutdown", &PySystem::Shutdown);

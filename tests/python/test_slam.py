@@ -89,6 +89,18 @@ class SlamRunTest(unittest.TestCase):
         self.assertEqual(stats["frames_processed"], self.FRAMES)
         self.assertGreaterEqual(stats["keyframes"], 2)
 
+    def test_refine_map_keeps_an_exact_map_exact(self):
+        system = mesh2slam.System(camera=self.camera, deterministic=True)
+        run(system, self.times, self.frames)
+        before = system.trajectory()
+        system.refine_map()
+        after = system.trajectory()
+        np.testing.assert_array_equal(before["has_pose"], after["has_pose"])
+        has_pose = after["has_pose"]
+        ate = mesh2slam.evaluate_ate(after["pose"][has_pose], self.poses[has_pose], align="sim3")
+        self.assertLess(ate["rmse"], 5e-7)  # exact features: the optimum is the truth
+        self.assertEqual(system.stats()["keyframes"], self.system.stats()["keyframes"])
+
     def test_track_releases_the_gil_and_repeats_bit_identically(self):
         ticks = []
         stop = threading.Event()
