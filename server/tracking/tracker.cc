@@ -346,6 +346,7 @@ TrackerOutput Tracker::Track(int64_t seq, double timestamp, const SortedFeatures
     // well-constrained ones when there are enough, dormant ones weighed): what the next frame
     // would do from it, done on this one.
     if (ok) {
+      const Pose3 last = last_camera_from_world_, velocity = velocity_;
       last_camera_from_world_ = camera_from_world;
       velocity_ = Pose3::Identity();
       Pose3 tracked;
@@ -355,6 +356,10 @@ TrackerOutput Tracker::Track(int64_t seq, double timestamp, const SortedFeatures
         inlier = std::move(tracked_inlier);
       }
       ok = PoseDetermined(a, inlier, camera_from_world);
+      if (!ok) {  // as if never tried
+        last_camera_from_world_ = last;
+        velocity_ = velocity;
+      }
     }
     relocalised = ok && lost_;
   }
