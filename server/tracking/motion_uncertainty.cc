@@ -7,6 +7,19 @@
 
 namespace m2s::slam {
 
+namespace {
+
+// d(pixel) / d(point in the camera frame) for the pinhole projection.
+Eigen::Matrix<double, 2, 3> ProjectionJacobian(const Camera& camera, const Eigen::Vector3d& p) {
+  Eigen::Matrix<double, 2, 3> j;
+  const double iz = 1.0 / p.z();
+  j << camera.fx * iz, 0.0, -camera.fx * p.x() * iz * iz, 0.0, camera.fy * iz,
+      -camera.fy * p.y() * iz * iz;
+  return j;
+}
+
+}  // namespace
+
 std::optional<MotionUncertainty> TwoViewMotionUncertainty(
     const Camera& camera, double pixel_sigma, const Pose3& camera1_from_camera0,
     const std::vector<Eigen::Vector3d>& points_camera0) {
@@ -17,24 +30,15 @@ std::optional<MotionUncertainty> TwoViewMotionUncertainty(
   // Two unit directions across the baseline: perturbations of the direction, in radians.
   Eigen::Vector3d e1 = t.unitOrthogonal();
   Eigen::Vector3d e2 = t.normalized().cross(e1);
-  auto projection_jacobian = [&camera](const Eigen::Vector3d& p) {
-    Eigen::Matrix<double, 2, 3> j;
-    const double iz = 1.0 / p.z();
-    j << camera.fx * iz, 0.0, -camera.fx * p.x() * iz * iz, 0.0, camera.fy * iz,
-        -camera.fy * p.y() * iz * iz;
-    return j;
-  };
   Eigen::Matrix<double, 5, 5> information = Eigen::Matrix<double, 5, 5>::Zero();
   for (const Eigen::Vector3d& x : points_camera0) {
     const Eigen::Vector3d rx = r * x;
     const Eigen::Vector3d p1 = rx + t;
     if (!(x.z() > 0.0) || !(p1.z() > 0.0)) continue;
-    const Eigen::Matrix<double, 2, 3> j0 = projection_jacobian(x);
-    const Eigen::Matrix<double, 2, 3> j1 = projection_jacobian(p1);
+    const Eigen::Matrix<double, 2, 3> j0 = ProjectionJacobian(camera, x);
+    const Eigen::Matrix<double, 2, 3> j1 = ProjectionJacobian(camera, p1);
     Eigen::Matrix<double, 3, 5> dp_dmotion;
-    Eigen::Matrix3d rx_hat;
-    rx_hat << 0.0, -rx.z(), rx.y(), rx.z(), 0.0, -rx.x(), -rx.y(), rx.x(), 0.0;
-    dp_dmotion << -rx_hat, baseline * e1, baseline * e2;
+    dp_dmotion << -Hat(rx), baseline * e1, baseline * e2;
     const Eigen::Matrix<double, 2, 5> a = j1 * dp_dmotion;
     const Eigen::Matrix<double, 2, 3> b1 = j1 * r;
     const Eigen::Matrix3d h_ll = j0.transpose() * j0 + b1.transpose() * b1;
@@ -72,15 +76,9 @@ double PoseCentreSigma(const Camera& camera, double pixel_sigma, const Pose3& ca
   for (const Eigen::Vector3d& x : points_world) {
     const Eigen::Vector3d p = camera_from_world * x;
     if (!(p.z() > 0.0)) continue;
-    const double iz = 1.0 / p.z();
-    Eigen::Matrix<double, 2, 3> projection;
-    projection << camera.fx * iz, 0.0, -camera.fx * p.x() * iz * iz, 0.0, camera.fy * iz,
-        -camera.fy * p.y() * iz * iz;
-    Eigen::Matrix3d p_hat;
-    p_hat << 0.0, -p.z(), p.y(), p.z(), 0.0, -p.x(), -p.y(), p.x(), 0.0;
     Eigen::Matrix<double, 3, 6> dp_dpose;
-    dp_dpose << -p_hat, -r;
-    const Eigen::Matrix<double, 2, 6> j = projection * dp_dpose;
+    dp_dpose << -Hat(p), -r;
+    const Eigen::Matrix<double, 2, 6> j = ProjectionJacobian(camera, p) * dp_dpose;
     information += j.transpose() * j;
     ++used;
   }
