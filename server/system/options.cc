@@ -123,6 +123,7 @@ Status Options::Check() const {
   if (feature_budget > 0 && feature_budget < initializer.min_points) {
     return Fail(kName, "feature_budget must be at least initializer.min_points");
   }
+  if (frame_observations_kept < 0) return Fail(kName, "frame_observations_kept must be >= 0");
   if (input_queue_capacity <= 0) return Fail(kName, "input_queue_capacity must be positive");
   if (mapping_queue_capacity < 1) {
     return Fail(kName, "mapping_queue_capacity must be positive");

@@ -130,6 +130,7 @@ TrackResult SlamSystem::TrackLocked(const Frame& frame) {
                 out.reference_from_camera,
                 result.keyframe_created,
                 frame.ground_truth_world_from_camera};
+  KeepObservations(out, options_.frame_observations_kept, &record);
   record.correction_epoch = tracker_.correction_epoch();
   AppendRecord(&record);
   result.map_id = record.map_id;
@@ -394,7 +395,14 @@ void SlamSystem::Reset() {
 
 void SlamSystem::RefineMap() {
   runner_.Exclusive([this] {
-    if (!localization_only_) mapper_.GlobalBundleAdjust(kFinalBaIterations, /*max_points=*/0);
+    if (localization_only_) return;
+    mapper_.GlobalBundleAdjust(kFinalBaIterations, /*max_points=*/0);
+    std::lock_guard<std::mutex> t(trajectory_mutex_);
+    map_.Read([&](const MapData& current) {
+      for (Record& r : trajectory_) {
+        if (r.map_id == current_map_) RefineFramePose(options_.measurement(), current, &r);
+      }
+    });
   });
 }
 

@@ -1,6 +1,7 @@
 #include "system/system_common.h"
 
 #include "m2s/common/numeric.h"
+#include "tracking/tracker_internal.h"
 
 namespace m2s::slam {
 
@@ -74,6 +75,45 @@ TrajectoryEntry ToEntry(const TrajectoryRecord& record, const MapData* map) {
   e.ground_truth_world_from_camera = record.ground_truth;
   e.map_id = record.map_id;
   return e;
+}
+
+void KeepObservations(const TrackerOutput& out, int kept, TrajectoryRecord* record) {
+  if (kept <= 0) return;  // EvenlySpacedIndices reads 0 as "every one"
+  const std::vector<size_t> keep =
+      EvenlySpacedIndices(out.observed_ids.size(), static_cast<size_t>(kept));
+  record->observed_ids.reserve(keep.size());
+  record->observed_uvs.reserve(keep.size());
+  for (const size_t i : keep) {
+    record->observed_ids.push_back(out.observed_ids[i]);
+    record->observed_uvs.push_back(out.observed_uvs[i].cast<float>());
+  }
+}
+
+bool RefineFramePose(const MeasurementModel& model, const MapData& map, TrajectoryRecord* record) {
+  if (!HasPose(record->state) || record->is_keyframe || !record->reference) return false;
+  const std::optional<Pose3> reference = map.ResolveKeyframePose(*record->reference);
+  if (!reference) return false;
+  std::vector<Eigen::Vector3d> points;
+  std::vector<Eigen::Vector2d> uvs;
+  for (size_t i = 0; i < record->observed_ids.size(); ++i) {
+    const MapPoint* p = map.point(record->observed_ids[i]);
+    if (p == nullptr || p->observers.empty()) continue;
+    points.push_back(p->position);
+    uvs.push_back(record->observed_uvs[i].cast<double>());
+  }
+  if (points.size() < static_cast<size_t>(tracker_internal::kMinTrackedInliers)) return false;
+  const PoseOnlyOptions options = tracker_internal::MakePoseOptions(model);
+  Pose3 solved = (*reference * record->reference_from_camera).Inverse();
+  const PoseOnlyResult r =
+      OptimizePose(model.camera, tracker_internal::MakePoseOptions(model), points, uvs, &solved);
+  // As tracking asks of a sparse view: most of the observations explained.
+  if (!r.converged || !solved.AllFinite() ||
+      r.num_inliers <
+          tracker_internal::kSparseViewInlierFraction * static_cast<double>(points.size())) {
+    return false;
+  }
+  record->reference_from_camera = reference->Inverse() * solved.Inverse();
+  return true;
 }
 
 }  // namespace m2s::slam

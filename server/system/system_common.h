@@ -32,6 +32,10 @@ struct TrajectoryRecord {
   std::optional<Pose3> ground_truth;
   int map_id = 0;
   uint64_t correction_epoch = 0;  // the world the poses are in (Map::correction())
+  // At most Options::frame_observations_kept of TrackerOutput::observed_ids/uvs, for
+  // RefineFramePose.
+  std::vector<VertexId> observed_ids{};
+  std::vector<Eigen::Vector2f> observed_uvs{};
 };
 
 // A map this young (at most kSmallMapKeyframes keyframes, fewer than kYoungMapFrames frames
@@ -79,5 +83,15 @@ void StartTracking(const InitialMap& initial, KeyframeId second, double timestam
 // The record's current estimate: through its reference keyframe in `map` (nullptr: the map is
 // gone, the pose at tracking time).
 TrajectoryEntry ToEntry(const TrajectoryRecord& record, const MapData* map);
+
+// Re-solves the pose of a tracked frame that is not a keyframe against `map` (after a global
+// bundle adjustment): pose-only, from its current estimate, on the map points it observed.
+// The record's pose relative to its reference keyframe takes the result when it explains at
+// least as many of those observations as the current estimate. Returns whether it did.
+// Keeps an even subset of at most `kept` of the tracker's observations in the record.
+void KeepObservations(const TrackerOutput& out, int kept, TrajectoryRecord* record);
+
+bool RefineFramePose(const MeasurementModel& model, const MapData& map,
+                     TrajectoryRecord* record);
 
 }  // namespace m2s::slam

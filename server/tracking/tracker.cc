@@ -411,6 +411,13 @@ TrackerOutput Tracker::Track(int64_t seq, double timestamp, const SortedFeatures
     streak[a.ids[i]] = it == outlier_streak_.end() ? 1 : it->second + 1;
   }
   outlier_streak_ = std::move(streak);
+  if (!rotation_only) {
+    for (const size_t i :
+         EvenlySpacedIndices(a.ids.size(), static_cast<size_t>(options_.max_points))) {
+      out.observed_ids.push_back(a.ids[i]);
+      out.observed_uvs.push_back(a.uvs[i]);
+    }
+  }
   if (reference_kf_ && a.reference_pose) {
     out.reference_keyframe = reference_kf_;
     out.reference_from_camera = a.reference_pose->Inverse() * out.world_from_camera;

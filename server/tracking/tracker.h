@@ -57,6 +57,11 @@ struct TrackerOutput {
   // The keyframe the pose is relative to, for trajectory refinement (absent when none).
   std::optional<KeyframeId> reference_keyframe;
   Pose3 reference_from_camera;
+  // The map points the pose was solved on (an even subset of at most TrackerOptions::max_points
+  // of the associated ones; empty for a rotation-only pose): what re-solving the frame against
+  // a refined map needs.
+  std::vector<VertexId> observed_ids;
+  std::vector<Eigen::Vector2d> observed_uvs;
   std::optional<KeyframeCandidate> keyframe;
 };
 

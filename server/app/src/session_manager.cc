@@ -245,6 +245,8 @@ bool SessionManager::CreateSystemLocked(const Opening& opening,
   slam::Options slam_options = options_.slam;
   slam_options.camera = opening.camera;
   slam_options.max_features_per_frame = options_.max_features;
+  // A session never calls System::RefineMap(): its frames keep no observations for it.
+  slam_options.frame_observations_kept = 0;
   if (opening.flags & session_control_t::FLAG_DETERMINISTIC) slam_options.deterministic = true;
   Expected<std::unique_ptr<slam::System>> created = Status::Error("no system");
   if (opening.group.empty()) {

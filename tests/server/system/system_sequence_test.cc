@@ -89,6 +89,14 @@ std::vector<double> ShownPointErrors(const System& system, const Sim3& truth_fro
   return errors;
 }
 
+std::vector<TrajectoryEntry> Keyframes(const std::vector<TrajectoryEntry>& trajectory) {
+  std::vector<TrajectoryEntry> keyframes;
+  for (const TrajectoryEntry& e : trajectory) {
+    if (e.is_keyframe) keyframes.push_back(e);
+  }
+  return keyframes;
+}
+
 TEST(SystemSequence, ShowsOnlyWellConstrainedPointsOfANoisySequenceAndRefinesThem) {
   // Points triangulated over small baselines sit centimetres to decimetres off. Clients get
   // only the well-constrained ones (measured over 6 s: 95th percentile of the error of the
@@ -111,20 +119,26 @@ TEST(SystemSequence, ShowsOnlyWellConstrainedPointsOfANoisySequenceAndRefinesThe
   EXPECT_LT(p95, 0.022);
   EXPECT_GT(errors.size(), static_cast<size_t>(stats.map_points) / 3);  // measured: 2728 of 6014
 
-  // RefineMap, the global bundle adjustment at the end of a session: every keyframe and point
+  // RefineMap, at the end of a session: the global bundle adjustment (every keyframe and point
   // together, on all their observations, where the local windows each refined only part of
-  // them. Measured: ATE 0.620 -> 0.584 mm, map median 3.38 -> 3.20 mm.
+  // them), then every other frame re-solved on the refined map. The map is judged in the
+  // keyframes' alignment, what the bundle adjustment moves (the frames' alignment moves with
+  // the frames). Measured: ATE 0.620 -> 0.494 mm; map median 3.40 -> 3.22 mm.
+  const std::vector<double> kf_errors = ShownPointErrors(
+      **system, ComputeAte(Keyframes((*system)->Trajectory())).truth_from_estimate);
   (*system)->RefineMap();
-  const auto refined = ComputeAte((*system)->Trajectory());
+  const std::vector<TrajectoryEntry> trajectory = (*system)->Trajectory();
+  const auto refined = ComputeAte(trajectory);
   const std::vector<double> refined_errors =
-      ShownPointErrors(**system, refined.truth_from_estimate);
+      ShownPointErrors(**system, ComputeAte(Keyframes(trajectory)).truth_from_estimate);
   ASSERT_FALSE(refined_errors.empty());
-  std::printf("refined: ATE %.3f mm, map median %.2f mm, %zu points shown\n", 1e3 * refined.rmse,
+  std::printf("refined: ATE %.3f mm, map median %.2f -> %.2f mm, %zu points shown\n",
+              1e3 * refined.rmse, 1e3 * kf_errors[kf_errors.size() / 2],
               1e3 * refined_errors[refined_errors.size() / 2], refined_errors.size());
   EXPECT_EQ(refined.num_poses, ate.num_poses);
   EXPECT_EQ((*system)->Stats().keyframes, stats.keyframes);
-  EXPECT_LT(refined.rmse, 0.98 * ate.rmse);
-  EXPECT_LT(refined_errors[refined_errors.size() / 2], 0.98 * errors[errors.size() / 2]);
+  EXPECT_LT(refined.rmse, 0.9 * ate.rmse);
+  EXPECT_LT(refined_errors[refined_errors.size() / 2], 0.98 * kf_errors[kf_errors.size() / 2]);
   // Tracking goes on in the refined map.
   EXPECT_NE((*system)->Track(seq.frames.back()).state, TrackingState::kLost);
 }
