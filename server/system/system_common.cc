@@ -102,7 +102,6 @@ bool RefineFramePose(const MeasurementModel& model, const MapData& map, Trajecto
     uvs.push_back(record->observed_uvs[i].cast<double>());
   }
   if (points.size() < static_cast<size_t>(tracker_internal::kMinTrackedInliers)) return false;
-  const PoseOnlyOptions options = tracker_internal::MakePoseOptions(model);
   Pose3 solved = (*reference * record->reference_from_camera).Inverse();
   const PoseOnlyResult r =
       OptimizePose(model.camera, tracker_internal::MakePoseOptions(model), points, uvs, &solved);

@@ -91,7 +91,6 @@ TrajectoryEntry ToEntry(const TrajectoryRecord& record, const MapData* map);
 // Keeps an even subset of at most `kept` of the tracker's observations in the record.
 void KeepObservations(const TrackerOutput& out, int kept, TrajectoryRecord* record);
 
-bool RefineFramePose(const MeasurementModel& model, const MapData& map,
-                     TrajectoryRecord* record);
+bool RefineFramePose(const MeasurementModel& model, const MapData& map, TrajectoryRecord* record);
 
 }  // namespace m2s::slam

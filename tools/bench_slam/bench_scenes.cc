@@ -15,7 +15,7 @@
 //   bench_scenes ... --motions-only --write-motion out/   # the motions and composed scenes
 //   bench_scenes ... --dump out/     # each run's aligned estimate and ground truth (TUM)
 //   bench_scenes ... --verbose       # the SLAM system's debug log (initialisation refusals)
-//   bench_scenes ... --no-refine     # final trajectory and map without the final global BA
+//   bench_scenes ... --no-refine     # final trajectory and map without System::RefineMap
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
@@ -209,7 +209,7 @@ int main(int argc, char** argv) {
   bool no_refine = false;
   app.add_flag("--no-refine", no_refine,
                "measure the final trajectory and map without System::RefineMap() (the global "
-               "bundle adjustment at the end of each run)");
+               "bundle adjustment at the end of each run, then every frame re-solved)");
   bool verbose = false;
   app.add_flag("--verbose", verbose,
                "log the SLAM system's debug messages (initialisation refusals, lost frames)");

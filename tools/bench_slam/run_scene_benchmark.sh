@@ -89,8 +89,9 @@ python3 -c 'import json, sys; json.dump([r for f in sys.argv[2:] for r in json.l
   echo "20 visible vertices, out of all frames with fewer than 20; *maps* the SLAM maps started (a"
   echo "new one after 0.5 s lost); *unmerged* the frames tracked"
   echo "in maps not merged into the final one; ATE is the Sim3-aligned error"
-  echo "of the final trajectory over the tracked frames, after the global bundle adjustment that"
-  echo "ends each run (\`System::RefineMap\`; \`bench_scenes --no-refine\` leaves it out); *ATE"
+  echo "of the final trajectory over the tracked frames, after the refinement that ends each run"
+  echo "(\`System::RefineMap\`: a global bundle adjustment, then every frame re-solved on the refined"
+  echo "map; \`bench_scenes --no-refine\` leaves it out); *ATE"
   echo "online* the same error of the poses as tracking returned them; map error compares the map"
   echo "points with their vertices under the final alignment."
   if [ -s "$work/large.md" ]; then

@@ -156,10 +156,11 @@ class System {
   virtual Status LoadMap(const std::string& path) = 0;
 
   // Refines the whole current map by a global bundle adjustment (every keyframe and point, as
-  // at the end of a session; the trajectory follows its keyframes, the poses Track() returned
-  // stay as they were). Tracking may go on. Systems without a map of their own (a plug-in
-  // method, a map group's agent) and a loaded map tracked in localisation-only mode are left
-  // as they are.
+  // at the end of a session), then re-solves every other tracked frame of that map on the
+  // refined map from the observations it kept (Options::frame_observations_kept). Trajectory()
+  // follows; the poses Track() returned stay as they were. Tracking may go on. Systems without
+  // a map of their own (a plug-in method, a map group's agent) and a loaded map tracked in
+  // localisation-only mode are left as they are.
   virtual void RefineMap() {}
 
   // Stops every thread (queued frames are discarded); idempotent, also done by the destructor.
