@@ -84,13 +84,14 @@ void StartTracking(const InitialMap& initial, KeyframeId second, double timestam
 // gone, the pose at tracking time).
 TrajectoryEntry ToEntry(const TrajectoryRecord& record, const MapData* map);
 
-// Re-solves the pose of a tracked frame that is not a keyframe against `map` (after a global
-// bundle adjustment): pose-only, from its current estimate, on the map points it observed.
-// The record's pose relative to its reference keyframe takes the result when it explains at
-// least as many of those observations as the current estimate. Returns whether it did.
 // Keeps an even subset of at most `kept` of the tracker's observations in the record.
 void KeepObservations(const TrackerOutput& out, int kept, TrajectoryRecord* record);
 
+// Re-solves the pose of a tracked frame that is not a keyframe against `map` (after a global
+// bundle adjustment): pose-only, from its current estimate, on the map points it observed.
+// The record's pose relative to its reference keyframe takes the result when the solve
+// converges with at least 75 % of those observations as inliers (tracking's sparse-view
+// rule). Returns whether it did.
 bool RefineFramePose(const MeasurementModel& model, const MapData& map, TrajectoryRecord* record);
 
 }  // namespace m2s::slam
