@@ -38,6 +38,7 @@ SlamSystem::SlamSystem(const Options& options)
       runner_(static_cast<size_t>(options.input_queue_capacity),
               [this](const Frame& frame) { return TrackLocked(frame); }) {
   tracker_.SetLocalizationOnly(localization_only_);
+  tracker_.SetReportObservations(options_.frame_observations_kept > 0);
   StartMapping();
 }
 

@@ -411,9 +411,12 @@ TrackerOutput Tracker::Track(int64_t seq, double timestamp, const SortedFeatures
     streak[a.ids[i]] = it == outlier_streak_.end() ? 1 : it->second + 1;
   }
   outlier_streak_ = std::move(streak);
-  if (!rotation_only) {
-    for (const size_t i :
-         EvenlySpacedIndices(a.ids.size(), static_cast<size_t>(options_.max_points))) {
+  if (report_observations_ && !rotation_only) {
+    const std::vector<size_t> observed =
+        EvenlySpacedIndices(a.ids.size(), static_cast<size_t>(options_.max_points));
+    out.observed_ids.reserve(observed.size());
+    out.observed_uvs.reserve(observed.size());
+    for (const size_t i : observed) {
       out.observed_ids.push_back(a.ids[i]);
       out.observed_uvs.push_back(a.uvs[i]);
     }

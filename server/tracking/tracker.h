@@ -58,8 +58,8 @@ struct TrackerOutput {
   std::optional<KeyframeId> reference_keyframe;
   Pose3 reference_from_camera;
   // The map points the pose was solved on (an even subset of at most TrackerOptions::max_points
-  // of the associated ones; empty for a rotation-only pose): what re-solving the frame against
-  // a refined map needs.
+  // of the associated ones; empty for a rotation-only pose, and unless SetReportObservations):
+  // what re-solving the frame against a refined map needs.
   std::vector<VertexId> observed_ids;
   std::vector<Eigen::Vector2d> observed_uvs;
   std::optional<KeyframeCandidate> keyframe;
@@ -92,6 +92,9 @@ class Tracker {
   void Reset();
   // Localisation only: never proposes keyframes.
   void SetLocalizationOnly(bool on) { localization_only_ = on; }
+  // Fill TrackerOutput::observed_ids/uvs (off: a caller that keeps no frame observations
+  // spends nothing on them).
+  void SetReportObservations(bool on) { report_observations_ = on; }
 
   TrackerOutput Track(int64_t seq, double timestamp, const SortedFeatures& features,
                       bool mapping_busy);
@@ -154,6 +157,7 @@ class Tracker {
   DriftOptions drift_;
   Map* map_;
   bool localization_only_ = false;
+  bool report_observations_ = false;
   bool started_ = false;
   bool lost_ = false;
   Pose3 last_camera_from_world_;
