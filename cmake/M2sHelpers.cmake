@@ -8,10 +8,11 @@ target_compile_options(m2s_options INTERFACE
 if(M2S_SANITIZE)
   string(REPLACE ";" "," _m2s_san "${M2S_SANITIZE}")
   # -O1 (after the build type's -O3, so it wins): the sanitizers' usual level; it compiles
-  # 2.5x faster than -O3 here, and the suite runs at a speed its bounds allow. Test sources
-  # and executables' mains (thin: the work is in the libraries) get -O0, half the compile
-  # time again (m2s_fast_compile below).
-  target_compile_options(m2s_options INTERFACE -fsanitize=${_m2s_san} -fno-omit-frame-pointer -O1)
+  # 2.5x faster than -O3 here, and the suite runs at a speed its bounds allow. Tests (targets
+  # with the property M2S_FAST_COMPILE) and executables' mains (thin: the work is in the
+  # libraries) get -O0, half the compile time again (m2s_fast_compile below).
+  target_compile_options(m2s_options INTERFACE -fsanitize=${_m2s_san} -fno-omit-frame-pointer
+    $<IF:$<BOOL:$<TARGET_PROPERTY:M2S_FAST_COMPILE>>,-O0,-O1>)
   # GCC 12's vptr check breaks LCM's callback dispatch (lcm-cpp-impl.hpp's static cb_func then
   # receives a bad user pointer; reproduced with a 20-line program on liblcm 1.3.1): off.
   if("undefined" IN_LIST M2S_SANITIZE)
@@ -53,6 +54,28 @@ function(m2s_add_executable name)
   m2s_fast_compile(${ARG_SOURCES})
 endfunction()
 
+# What every test target and the tests' precompiled header share: their flags must match for
+# the header to be used (GCC ignores a precompiled header built with other flags).
+function(m2s_test_compile_settings target)
+  set_target_properties(${target} PROPERTIES M2S_FAST_COMPILE ON)
+  target_link_libraries(${target} PRIVATE m2s::options GTest::gtest Eigen3::Eigen)
+  target_compile_definitions(${target} PRIVATE
+    M2S_SOURCE_DIR="${PROJECT_SOURCE_DIR}" M2S_BINARY_DIR="${CMAKE_BINARY_DIR}")
+endfunction()
+
+# m2s_add_test_pch(): one precompiled header of the third-party headers most tests include
+# (GoogleTest, Eigen, the standard library), built once and reused by every m2s_add_test
+# target: their parsing is most of a test source's compile time at -O0.
+function(m2s_add_test_pch)
+  file(CONFIGURE OUTPUT ${CMAKE_BINARY_DIR}/m2s_test_pch.cc
+       CONTENT "// The owner of the tests' precompiled header.\n")
+  add_library(m2s_test_pch OBJECT ${CMAKE_BINARY_DIR}/m2s_test_pch.cc)
+  m2s_test_compile_settings(m2s_test_pch)
+  target_precompile_headers(m2s_test_pch PRIVATE
+    <algorithm> <cmath> <cstdint> <functional> <map> <memory> <optional> <string>
+    <unordered_map> <vector> <Eigen/Dense> <gtest/gtest.h>)
+endfunction()
+
 # m2s_add_test(NAME [NO_LEAK_CHECK] SOURCES ... [DEPS ...] [LABELS ...]): one gtest executable
 # (NO_LEAK_CHECK: ASan without LeakSanitizer, for tests whose leaks are in unloaded third-party
 # modules), discovered by
@@ -63,11 +86,12 @@ endfunction()
 function(m2s_add_test name)
   cmake_parse_arguments(ARG "NO_LEAK_CHECK" "" "SOURCES;DEPS;LABELS" ${ARGN})
   add_executable(${name} ${ARG_SOURCES})
-  m2s_fast_compile(${ARG_SOURCES})
+  m2s_test_compile_settings(${name})
   set_target_properties(${name} PROPERTIES RUNTIME_OUTPUT_DIRECTORY ${CMAKE_BINARY_DIR}/bin/tests)
-  target_link_libraries(${name} PRIVATE m2s::options ${ARG_DEPS} GTest::gtest GTest::gtest_main)
-  target_compile_definitions(${name} PRIVATE
-    M2S_SOURCE_DIR="${PROJECT_SOURCE_DIR}" M2S_BINARY_DIR="${CMAKE_BINARY_DIR}")
+  target_link_libraries(${name} PRIVATE ${ARG_DEPS} GTest::gtest_main)
+  if(TARGET m2s_test_pch)
+    target_precompile_headers(${name} REUSE_FROM m2s_test_pch)
+  endif()
   set(_props TIMEOUT 600)
   if(ARG_NO_LEAK_CHECK AND "address" IN_LIST M2S_SANITIZE)
     list(APPEND _props ENVIRONMENT "ASAN_OPTIONS=detect_leaks=0:abort_on_error=1")
