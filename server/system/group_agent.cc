@@ -211,9 +211,10 @@ TrackResult GroupAgent::Initialise(const Frame& frame, const SortedFeatures& fea
   StartTracking(*initial, second, frame.timestamp, &tracker);
   {
     std::lock_guard<std::mutex> lock(records_mutex_);
-    const int64_t first_was_lost = MarkInitialFrame(initial->first.seq, first, map_id, &records_);
-    stats_.frames_tracked += 2;
-    stats_.frames_lost -= first_was_lost;
+    const InitialFramesMarked marked =
+        MarkInitialFrames(*initial, first, second, map_id, /*kept=*/0, &records_);
+    stats_.frames_tracked += 1 + marked.marked;
+    stats_.frames_lost -= marked.was_lost;
     if (map_id != MapGroupImpl::kGroupMapId) ++stats_.maps_created;
   }
   record.state = TrackingState::kOk;

@@ -273,40 +273,38 @@ TrackResult SlamSystem::Initialise(const Frame& frame, const SortedFeatures& fea
   Record record{frame.seq,    frame.timestamp, waiting, Pose3(),
                 std::nullopt, Pose3(),         false,   frame.ground_truth_world_from_camera};
   record.correction_epoch = map_.correction().epoch;
-  if (!initial) {
-    result.state = waiting;
-    AppendRecord(&record);
-    result.map_id = record.map_id;
-    if (later_map) {
-      std::lock_guard<std::mutex> s(stats_mutex_);
-      ++stats_.frames_lost;
-    }
-    return result;
+  AppendRecord(&record);
+  result.state = waiting;
+  result.map_id = record.map_id;
+  if (later_map) {
+    std::lock_guard<std::mutex> s(stats_mutex_);
+    ++stats_.frames_lost;
   }
+  if (!initial) return result;
+  return StartFromInitialMap(*initial, result);
+}
+
+TrackResult SlamSystem::StartFromInitialMap(const InitialMap& initial, TrackResult result) {
   const KeyframeId first = map_.NextKeyframeId();
   const KeyframeId second = map_.NextKeyframeId();
-  mapper_.InsertInitialMap(*initial, first, second);
-  StartTracking(*initial, second, frame.timestamp, &tracker_);
-  int64_t first_was_lost = 0;
+  mapper_.InsertInitialMap(initial, first, second);
+  StartTracking(initial, second, initial.second.timestamp, &tracker_);
+  InitialFramesMarked marked;
   {
     std::lock_guard<std::mutex> lock(trajectory_mutex_);
-    first_was_lost = MarkInitialFrame(initial->first.seq, first, current_map_, &trajectory_);
+    marked = MarkInitialFrames(initial, first, second, current_map_,
+                               options_.frame_observations_kept, &trajectory_);
   }
-  record.state = TrackingState::kOk;
-  record.world_from_camera = initial->second.world_from_camera;
-  record.reference = second;
-  record.is_keyframe = true;
-  AppendRecord(&record);
-  result.map_id = record.map_id;
   {
     std::lock_guard<std::mutex> s(stats_mutex_);
-    stats_.frames_tracked += 2;
-    stats_.frames_lost -= first_was_lost;
+    stats_.frames_tracked += marked.marked;
+    stats_.frames_lost -= marked.was_lost;
   }
+  result.map_id = current_map_;
   if (options_.deterministic) TryMergeSetAsideMaps();
   result.state = TrackingState::kOk;
-  result.world_from_camera = initial->second.world_from_camera;
-  result.num_inliers = static_cast<int>(initial->points.size());
+  result.world_from_camera = initial.second.world_from_camera;
+  result.num_inliers = static_cast<int>(initial.points.size());
   result.keyframe_created = true;
   return result;
 }

@@ -73,6 +73,10 @@ class SlamSystem final : public System {
 
   TrackResult TrackLocked(const Frame& frame);
   TrackResult Initialise(const Frame& frame, const SortedFeatures& features, TrackResult result);
+  // Starts the current (empty) map from an initial map whose second view is the frame of
+  // `result`, already recorded: the records of its two views and of the frames between them
+  // that it explains get their poses.
+  TrackResult StartFromInitialMap(const InitialMap& initial, TrackResult result);
   void ResetLocked(bool keep_localization_only);
   Status LoadMapLocked(const std::string& path);
   void StartMapping();

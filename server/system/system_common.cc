@@ -1,5 +1,7 @@
 #include "system/system_common.h"
 
+#include <unordered_map>
+
 #include "m2s/common/numeric.h"
 #include "tracking/tracker_internal.h"
 
@@ -39,19 +41,45 @@ void MoveRecord(const Sim3& new_from_old, int new_map_id, TrajectoryRecord* reco
   record->map_id = new_map_id;
 }
 
-int64_t MarkInitialFrame(int64_t seq, KeyframeId first, int map_id,
-                         std::vector<TrajectoryRecord>* records) {
-  int64_t was_lost = 0;
+InitialFramesMarked MarkInitialFrames(const InitialMap& initial, KeyframeId first,
+                                      KeyframeId second, int map_id, int kept,
+                                      std::vector<TrajectoryRecord>* records) {
+  std::unordered_map<int64_t, const InitialInbetween*> inbetween;
+  for (const InitialInbetween& f : initial.inbetween) inbetween.emplace(f.seq, &f);
+  InitialFramesMarked marked;
   for (TrajectoryRecord& r : *records) {
-    if (r.seq != seq) continue;
-    was_lost += r.state == TrackingState::kLost ? 1 : 0;
+    const bool is_first = r.seq == initial.first.seq;
+    const bool is_second = r.seq == initial.second.seq;
+    const auto it = is_first || is_second ? inbetween.end() : inbetween.find(r.seq);
+    if (!is_first && !is_second && it == inbetween.end()) continue;
+    if (!is_first && HasPose(r.state)) continue;  // a pose in another map already
+    ++marked.marked;
+    marked.was_lost += r.state == TrackingState::kLost ? 1 : 0;
     r.state = TrackingState::kOk;
-    r.reference = first;
-    r.reference_from_camera = Pose3::Identity();
-    r.is_keyframe = true;
+    r.reference = is_second ? second : first;
     r.map_id = map_id;
+    if (is_first || is_second) {
+      r.reference_from_camera = Pose3::Identity();
+      r.world_from_camera =
+          is_first ? initial.first.world_from_camera : initial.second.world_from_camera;
+      r.is_keyframe = true;
+      continue;
+    }
+    // The first keyframe is the initial map's world.
+    const InitialInbetween& f = *it->second;
+    r.world_from_camera = f.world_from_camera;
+    r.reference_from_camera = f.world_from_camera;
+    if (kept <= 0) continue;
+    const std::vector<size_t> keep =
+        EvenlySpacedIndices(f.observed_ids.size(), static_cast<size_t>(kept));
+    r.observed_ids.clear();
+    r.observed_uvs.clear();
+    for (const size_t i : keep) {
+      r.observed_ids.push_back(f.observed_ids[i]);
+      r.observed_uvs.push_back(f.observed_uvs[i].cast<float>());
+    }
   }
-  return was_lost;
+  return marked;
 }
 
 void StartTracking(const InitialMap& initial, KeyframeId second, double timestamp,

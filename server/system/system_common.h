@@ -71,10 +71,18 @@ bool TakeFrame(const Frame& frame, bool shut_down, int feature_budget, const Fea
 // Moves a record into another map's world: x_new = new_from_old * x_old.
 void MoveRecord(const Sim3& new_from_old, int new_map_id, TrajectoryRecord* record);
 
-// After a two-view initialisation: the initial map's first frame (records with that seq) is
-// the keyframe `first` of map `map_id`. Returns how many of those records were counted lost.
-int64_t MarkInitialFrame(int64_t seq, KeyframeId first, int map_id,
-                         std::vector<TrajectoryRecord>* records);
+// After a two-view initialisation: the initial map's first and second frames (records with
+// those seqs) are the keyframes `first` and `second` of map `map_id`, and the frames between
+// the two views that the initial map explains (InitialMap::inbetween) are tracked relative to
+// the first, each keeping at most `kept` of its observations. Records of the frames between
+// that have a pose already are left alone.
+struct InitialFramesMarked {
+  int64_t marked = 0;    // records given a pose
+  int64_t was_lost = 0;  // of them, records counted lost
+};
+InitialFramesMarked MarkInitialFrames(const InitialMap& initial, KeyframeId first,
+                                      KeyframeId second, int map_id, int kept,
+                                      std::vector<TrajectoryRecord>* records);
 
 // Starts `tracker` from the initial map's second keyframe `second`.
 void StartTracking(const InitialMap& initial, KeyframeId second, double timestamp,

@@ -1,10 +1,13 @@
 #include "tracking/initializer.h"
 
 #include <algorithm>
+#include <chrono>
+#include <unordered_map>
 
 #include "m2s/common/logging.h"
 #include "m2s/common/numeric.h"
 #include "optimization/problems.h"
+#include "tracking/tracker_internal.h"
 
 namespace m2s::slam {
 namespace {
@@ -28,6 +31,16 @@ std::optional<InitialMap> Initializer::Process(int64_t seq, double timestamp,
     reference_ = InitialFrame{seq, timestamp, features, Pose3::Identity()};
     frames_since_reference_ = 0;
     next_attempt_time_.reset();
+    since_reference_.clear();
+  };
+  // A frame that does not initialise is kept for SolveInbetween (unless it became the
+  // reference); the bound is the reference's age.
+  auto keep_frame = [&]() {
+    if (reference_->seq == seq) return;
+    if (since_reference_.size() > static_cast<size_t>(options_.max_reference_age)) {
+      since_reference_.erase(since_reference_.begin());
+    }
+    since_reference_.push_back(InitialFrame{seq, timestamp, features, Pose3::Identity()});
   };
   if (!reference_ || features.size() < static_cast<size_t>(options_.min_points)) {
     if (features.size() >= static_cast<size_t>(options_.min_points)) set_reference();
@@ -38,6 +51,7 @@ std::optional<InitialMap> Initializer::Process(int64_t seq, double timestamp,
   if (next_attempt_time_ && timestamp < *next_attempt_time_) {
     last_failure_ = "too little parallax (waiting)";
     if (frames_since_reference_ > options_.max_reference_age) set_reference();
+    keep_frame();
     return std::nullopt;
   }
   TwoViewRefusal refusal;
@@ -65,6 +79,7 @@ std::optional<InitialMap> Initializer::Process(int64_t seq, double timestamp,
     if (frames_since_reference_ > options_.max_reference_age || too_few_shared) {
       set_reference();
     }
+    keep_frame();
     return std::nullopt;
   }
 
@@ -114,6 +129,7 @@ std::optional<InitialMap> Initializer::Process(int64_t seq, double timestamp,
     last_failure_ = "the refined motion is undetermined";
     next_attempt_time_ = timestamp + kMaxInitRetryDelayS;
     if (frames_since_reference_ > options_.max_reference_age) set_reference();
+    keep_frame();
     return std::nullopt;
   }
   if (static_cast<int>(map.points.size()) < options_.min_points) {
@@ -130,13 +146,58 @@ std::optional<InitialMap> Initializer::Process(int64_t seq, double timestamp,
   map.first.world_from_camera = Pose3::Identity();
   map.second = InitialFrame{seq, timestamp, features, world_from_camera1};
   map.used_homography = two_view->used_homography;
+  const auto t0 = std::chrono::steady_clock::now();
+  SolveInbetween(&map);
+  const double inbetween_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   M2S_LOG(kInfo) << "initialised from frames " << map.first.seq << " and " << seq << " with "
                  << map.points.size() << " points ("
                  << (map.used_homography ? "homography" : "essential") << ", median parallax "
-                 << two_view->median_parallax_deg << " deg)";
+                 << two_view->median_parallax_deg << " deg); " << map.inbetween.size() << " of "
+                 << since_reference_.size() << " frames between them solved in " << inbetween_ms
+                 << " ms";
   reference_.reset();
+  since_reference_.clear();
   second_opinion_refusals_ = 0;
   return map;
+}
+
+void Initializer::SolveInbetween(InitialMap* map) const {
+  const double span = map->second.timestamp - map->first.timestamp;
+  const PoseOnlyOptions pose_options = tracker_internal::MakePoseOptions(model_);
+  std::unordered_map<VertexId, size_t> point_index;
+  for (size_t j = 0; j < map->point_ids.size(); ++j) point_index.emplace(map->point_ids[j], j);
+  for (const InitialFrame& f : since_reference_) {
+    std::vector<Eigen::Vector3d> points;
+    std::vector<Eigen::Vector2d> uvs;
+    std::vector<VertexId> ids;
+    for (size_t i = 0; i < f.features.size(); ++i) {
+      const auto it = point_index.find(f.features.ids[i]);
+      if (it == point_index.end()) continue;
+      ids.push_back(f.features.ids[i]);
+      points.push_back(map->points[it->second]);
+      uvs.push_back(f.features.uvs[i]);
+    }
+    if (points.size() < static_cast<size_t>(tracker_internal::kMinTrackedInliers)) continue;
+    const double alpha =
+        span > 0.0 ? std::clamp((f.timestamp - map->first.timestamp) / span, 0.0, 1.0) : 0.5;
+    Pose3 camera_from_world =
+        Interpolate(map->first.world_from_camera, map->second.world_from_camera, alpha).Inverse();
+    const PoseOnlyResult r =
+        OptimizePose(model_.camera, pose_options, points, uvs, &camera_from_world);
+    if (!r.converged || !camera_from_world.AllFinite() ||
+        r.num_inliers <
+            tracker_internal::kSparseViewInlierFraction * static_cast<double>(points.size())) {
+      continue;
+    }
+    InitialInbetween solved{f.seq, camera_from_world.Inverse(), {}, {}};
+    for (size_t i = 0; i < ids.size(); ++i) {
+      if (!r.inlier[i]) continue;
+      solved.observed_ids.push_back(ids[i]);
+      solved.observed_uvs.push_back(uvs[i]);
+    }
+    map->inbetween.push_back(std::move(solved));
+  }
 }
 
 }  // namespace m2s::slam

@@ -12,6 +12,8 @@
 // InitializerOptions' bounds, before and after the bundle adjustment. Bunched or distant points
 // fail that with exact data too (TwoViewRefusal::Kind::kWeakGeometry), and the initialiser
 // waits for more baseline.
+// Once the map exists, the frames between its two views are solved on it too (InitialMap::
+// inbetween): they get poses instead of staying without one.
 // A refused attempt costs milliseconds (two RANSACs): after one, the next attempt waits until the
 // parallax, growing with the time since the reference frame, should be near the bound (at most
 // kMaxInitRetryDelayS later), so waiting frames stay cheap.
@@ -42,12 +44,25 @@ struct InitialFrame {
   Pose3 world_from_camera;
 };
 
+// A frame between the two views of an initial map, solved on the initial map: the features
+// whose ids are map points and whose pose the solve explains.
+struct InitialInbetween {
+  int64_t seq = 0;
+  Pose3 world_from_camera;
+  std::vector<VertexId> observed_ids;
+  std::vector<Eigen::Vector2d> observed_uvs;
+};
+
 struct InitialMap {
   InitialFrame first;  // world_from_camera = identity
   InitialFrame second;
   std::vector<VertexId> point_ids;
   std::vector<Eigen::Vector3d> points;  // world; median depth in the first camera is 1
   bool used_homography = false;
+  // The frames between first and second that the initial map explains (pose-only solve from
+  // the pose interpolated in time, converged with tracking's sparse-view rule), in order.
+  // Frames it does not explain are left out.
+  std::vector<InitialInbetween> inbetween;
 };
 
 class Initializer {
@@ -61,6 +76,7 @@ class Initializer {
   std::optional<InitialMap> Process(int64_t seq, double timestamp, const SortedFeatures& features);
   void Reset() {
     reference_.reset(), frames_since_reference_ = 0, next_attempt_time_.reset();
+    since_reference_.clear();
     second_opinion_refusals_ = 0;
   }
   const std::string& last_failure() const { return last_failure_; }
@@ -73,8 +89,13 @@ class Initializer {
   MeasurementModel model_;
   InitializerOptions options_;
   int num_ba_threads_;
+  // Solves the frames of since_reference_ on `map` (InitialMap::inbetween).
+  void SolveInbetween(InitialMap* map) const;
+
   std::optional<InitialFrame> reference_;
   int frames_since_reference_ = 0;
+  // The frames after the reference (at most max_reference_age + 1): solved once a map exists.
+  std::vector<InitialFrame> since_reference_;
   std::optional<double> next_attempt_time_;  // no full attempt before this capture time
   int second_opinion_refusals_ = 0;          // since the last map or Reset
   std::string last_failure_;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "m2s/common/logging.h"
 #include "m2s/common/numeric.h"
 #include "optimization/problems.h"
 #include "tracking/tracker_internal.h"
@@ -370,6 +371,8 @@ TrackerOutput Tracker::Track(int64_t seq, double timestamp, const SortedFeatures
         TrackRotationOnly(timestamp, features, a, &camera_from_world, &inlier, &rotation_keyframe);
   }
   if (!ok) {
+    M2S_LOG(kDebug) << "frame " << seq << " not tracked: " << features.size() << " features, "
+                    << a.ids.size() << " of them map points (" << a.num_dormant << " dormant)";
     lost_ = true;
     out.state = TrackingState::kLost;
     velocity_ = Pose3::Identity();

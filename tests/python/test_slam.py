@@ -66,8 +66,9 @@ class SlamRunTest(unittest.TestCase):
         trajectory = self.system.trajectory()
         self.assertEqual(len(trajectory["seq"]), self.FRAMES)
         has_pose = trajectory["has_pose"]
-        self.assertEqual(int(has_pose.sum()), self.FRAMES - first_ok + 1)  # + the reference
-        self.assertTrue(np.isnan(trajectory["pose"][~has_pose]).all())
+        # The frames that waited for parallax get poses once the map exists: the first frame
+        # is the reference, those after it are solved on the initial map.
+        self.assertTrue(has_pose.all())
         ate = mesh2slam.evaluate_ate(trajectory["pose"][has_pose], self.poses[has_pose],
                                      align="sim3")
         # Exact features: measured 6.7e-8 m (Release) over these frames.

@@ -133,10 +133,11 @@ void Evaluate(const Scene& scene, const Trajectory& ground_truth, slam::System& 
 
 // Counts tracked / initialisation / lost frames and the Track() times from ordered results.
 // `visible[seq]` is the number of vertices in frame seq; frames after initialisation without a
-// pose count as untracked, or as untracked_few_visible below `min_visible`.
+// pose count as untracked, or as untracked_few_visible below `min_visible`. A frame has a pose
+// when Track() gave it one or the final trajectory has one (`final_pose`, by seq: late).
 void CountResults(const std::vector<slam::TrackResult>& results,
                   const std::vector<double>& times_ms, const std::vector<int>& visible,
-                  int min_visible, RunMetrics* m) {
+                  const std::vector<bool>& final_pose, int min_visible, RunMetrics* m) {
   for (int n : visible) m->few_visible += n < min_visible ? 1 : 0;
   m->median_visible = Percentile(std::vector<double>(visible.begin(), visible.end()), 0.5,
                                  PercentileMethod::kFlooredRank);
@@ -146,9 +147,12 @@ void CountResults(const std::vector<slam::TrackResult>& results,
   for (size_t i = 0; i < results.size(); ++i) {
     const slam::TrackResult& r = results[i];
     features += r.num_features;
-    if (HasPose(r.state)) {
+    const bool late = !HasPose(r.state) && r.seq >= 0 &&
+                      r.seq < static_cast<int64_t>(final_pose.size()) && final_pose[r.seq];
+    if (HasPose(r.state) || late) {
       initialised = true;
       ++m->tracked;
+      m->late += late ? 1 : 0;
     } else if (!initialised) {
       ++m->init_frames;
     } else {
@@ -250,7 +254,12 @@ Expected<RunMetrics> RunAccuracy(const Scene& scene, const Sequence& sequence,
     consumer.join();
   }
   m.wall_s = std::chrono::duration<double>(Clock::now() - start).count();
-  CountResults(results, times_ms, visible, config.min_visible_for_lost, &m);
+  std::vector<bool> final_pose(visible.size(), false);
+  for (const slam::TrajectoryEntry& e : system.Trajectory()) {
+    if (HasPose(e.state) && e.seq >= 0 && e.seq < static_cast<int64_t>(final_pose.size()))
+      final_pose[e.seq] = true;
+  }
+  CountResults(results, times_ms, visible, final_pose, config.min_visible_for_lost, &m);
   if (config.refine_map) system.RefineMap();
   Evaluate(scene, *ground_truth, system, results, config.dump_prefix, &m);
   system.Shutdown();

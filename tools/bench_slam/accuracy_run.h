@@ -45,10 +45,13 @@ struct RunMetrics {
   std::string sequence;
   std::string mode;  // "noise-free", "noisy", "realtime-noise-free", "realtime-noisy"
   double fps = 0.0;
-  int frames = 0;       // frames of the sequence at this rate
+  int frames = 0;  // frames of the sequence at this rate
+  // Counted on the final trajectory (System::Trajectory), which gives poses to frames that had
+  // none when tracked (the frames between a map's two initial views): `late` counts those.
   int tracked = 0;      // frames with a pose (kOk or kRelocalized)
+  int late = 0;         // of them, frames without a pose from Track()
   int init_frames = 0;  // frames before the first tracked one
-  int lost = 0;         // frames reported kLost after initialisation
+  int lost = 0;         // frames reported kLost after initialisation and never given a pose
   // Frames after initialisation without a pose (any state) and with at least
   // RunConfig::min_visible_for_lost visible vertices; those with fewer are untracked_few_visible.
   int untracked = 0;

@@ -2,8 +2,9 @@
 // gathered by tools/bench_slam/make_corpus.sh) x every motion (head, hand-held, drone) x every
 // feature mode (noise-free, noisy = 0.5 px + 1% wrong ids, noisy with occlusion), deterministic
 // (mapping inline), one frame rate. Prints a markdown table: ATE (of the final trajectory,
-// after System::RefineMap, and online), lost frames (frames with fewer than --min-visible
-// visible vertices are counted apart), keyframes, map error.
+// after System::RefineMap, and online), tracked frames (in brackets those that got their pose
+// once their map initialised), lost frames (frames with fewer than --min-visible visible
+// vertices are counted apart), keyframes, map error.
 //
 //   tools/bench_slam/make_corpus.sh
 //   bench_scenes --manifest tools/bench_slam/scenes.json --mesh-root ~/.cache/m2s-corpus/meshes
@@ -57,7 +58,7 @@ std::string Mm(double metres) {
 
 void PrintHeader() {
   std::printf(
-      "| scene | motion | mode | frames | visible (median) | init | tracked | lost | "
+      "| scene | motion | mode | frames | visible (median) | init | tracked (late) | lost | "
       "few-visible untracked / frames | maps | unmerged | KFs | ATE RMSE (mm) | ATE max (mm) | "
       "ATE online (mm) | map median (mm) | map RMSE (mm) | wall (s) |\n");
   std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
@@ -65,10 +66,10 @@ void PrintHeader() {
 
 void PrintRow(const std::string& scene, const std::string& motion, const RunMetrics& m) {
   std::printf(
-      "| %s | %s | %s | %d | %.0f | %d | %d | %d | %d / %d | %d | %lld | %d | %s | %s | %s | %s "
-      "| %s | %.1f |\n",
+      "| %s | %s | %s | %d | %.0f | %d | %d (%d) | %d | %d / %d | %d | %lld | %d | %s | %s | %s | "
+      "%s | %s | %.1f |\n",
       scene.c_str(), motion.c_str(), m.mode.c_str(), m.frames, m.median_visible, m.init_frames,
-      m.tracked, m.untracked, m.untracked_few_visible, m.few_visible, m.maps,
+      m.tracked, m.late, m.untracked, m.untracked_few_visible, m.few_visible, m.maps,
       static_cast<long long>(m.frames_in_unmerged_maps), m.keyframes, Mm(m.ate_rmse_m).c_str(),
       Mm(m.ate_max_m).c_str(), Mm(m.ate_online_rmse_m).c_str(), Mm(m.map_median_m).c_str(),
       Mm(m.map_rmse_m).c_str(), m.wall_s);
@@ -84,6 +85,7 @@ nlohmann::json ToJson(const std::string& scene, const std::string& motion, const
           {"median_visible", m.median_visible},
           {"init_frames", m.init_frames},
           {"tracked", m.tracked},
+          {"late", m.late},
           {"lost", m.untracked},
           {"untracked_few_visible", m.untracked_few_visible},
           {"few_visible", m.few_visible},

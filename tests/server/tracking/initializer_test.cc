@@ -1,7 +1,9 @@
 // Two-view initialisation on exact synthetic views: a general 3-D scene (essential matrix), a
-// planar one (homography), and refusal under pure rotation.
+// planar one (homography), refusal under pure rotation, and the poses of the frames between the
+// two views.
 #include "tracking/initializer.h"
 
+#include <algorithm>
 #include <random>
 
 #include <gtest/gtest.h>
@@ -139,6 +141,51 @@ TEST(Initializer, ToleratesWrongIds) {
   const Pose3& est = map->second.world_from_camera;
   EXPECT_LT(RotationAngle(est.rotation().conjugate() * motion.rotation()), 1e-4);
   EXPECT_LT((est.translation().normalized() - motion.translation().normalized()).norm(), 1e-3);
+}
+
+// A slow sideways motion: the first frames have too little parallax; once a later one
+// initialises, the frames between the two views get their poses on the initial map (the truth
+// up to the monocular scale), and a frame that is not a view of the scene (its pixels shuffled
+// among its ids) is left out.
+TEST(Initializer, SolvesTheFramesBetweenTheTwoViews) {
+  const Options options = TestOptions();
+  Initializer init(options.measurement(), options.initializer, 1);
+  const int kScrambled = 5;
+  std::vector<Pose3> truth;
+  std::optional<InitialMap> map;
+  Views views;
+  for (int k = 0; k < 60 && !map; ++k) {
+    truth.push_back(Motion(0.01 * k, 0.1 * k));
+    views = MakeViews(options.camera, truth.back(), false);
+    SortedFeatures view = views.view1;
+    if (k == kScrambled) {
+      std::mt19937 rng(3);
+      std::shuffle(view.uvs.begin(), view.uvs.end(), rng);
+    }
+    map = init.Process(k, 0.1 * k, view);
+  }
+  ASSERT_TRUE(map.has_value()) << init.last_failure();
+  ASSERT_EQ(map->first.seq, 0);
+  const int64_t second = map->second.seq;
+  ASSERT_GE(second, 3) << "the motion is meant to need several frames";
+  const Pose3 origin = truth[0];
+  const double scale = (origin.Inverse() * truth[second]).translation().norm() /
+                       map->second.world_from_camera.translation().norm();
+  std::vector<int64_t> solved;
+  for (const InitialInbetween& f : map->inbetween) {
+    solved.push_back(f.seq);
+    const Pose3 expected = origin.Inverse() * truth[f.seq];
+    const Pose3& est = f.world_from_camera;
+    EXPECT_LT(RotationAngle(est.rotation().conjugate() * expected.rotation()), 1e-5) << f.seq;
+    EXPECT_LT((est.translation() * scale - expected.translation()).norm(), 1e-5) << f.seq;
+    EXPECT_GE(f.observed_ids.size(), map->points.size() * 9 / 10) << f.seq;
+    ASSERT_EQ(f.observed_ids.size(), f.observed_uvs.size());
+  }
+  std::vector<int64_t> expected_seqs;
+  for (int64_t k = 1; k < second; ++k) {
+    if (k != kScrambled) expected_seqs.push_back(k);
+  }
+  EXPECT_EQ(solved, expected_seqs);
 }
 
 // OpenCV's homography solver throws on fewer than four matches. Only options Check() refuses
