@@ -84,7 +84,9 @@ python3 -c 'import json, sys; json.dump([r for f in sys.argv[2:] for r in json.l
   echo "the frustum; occlusion hides those behind the scene's triangles."
   echo
   echo "Columns: *visible* is the median number of vertices per frame; *init* the frames before"
-  echo "the first pose; *lost* the frames after it without a pose and with at least 20 visible"
+  echo "the first pose; *tracked* the frames with a pose, in brackets those that got it only"
+  echo "once their map initialised (the frames between its two views); *lost* the frames after"
+  echo "the first pose without one and with at least 20 visible"
   echo "vertices; *few-visible untracked / frames* the frames without a pose that had fewer than"
   echo "20 visible vertices, out of all frames with fewer than 20; *maps* the SLAM maps started (a"
   echo "new one after 0.5 s lost); *unmerged* the frames tracked"
