@@ -67,6 +67,14 @@ Expected<MapAlignment> AlignMaps(const MapData& into, const MapData& from,
     out.rms_residual = out.inliers > 0 ? std::sqrt(sum_sq / out.inliers) : 0.0;
     if (converged || out.inliers < 3) break;
   }
+  if (!dst.empty()) {
+    Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+    for (const Eigen::Vector3d& p : dst) centroid += p;
+    centroid /= static_cast<double>(dst.size());
+    double sum = 0.0;
+    for (const Eigen::Vector3d& p : dst) sum += (p - centroid).squaredNorm();
+    out.spread = std::sqrt(sum / static_cast<double>(dst.size()));
+  }
   if (out.inliers < options.min_inlier_fraction * shared) {
     return Expected<MapAlignment>::Error(std::to_string(out.inliers) + " of " +
                                          std::to_string(shared) + " shared points agree");

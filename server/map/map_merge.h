@@ -43,6 +43,9 @@ struct MapAlignment {
   int shared_points = 0;
   int inliers = 0;
   double rms_residual = 0.0;  // over the inliers, in the `into` map's units
+  // The inliers' RMS distance from their centroid in `into`: rms_residual / spread is the
+  // misfit relative to the size of what is aligned.
+  double spread = 0.0;
 };
 
 // The Sim3 from `from`'s world to `into`'s world, fitted on the points both maps hold.

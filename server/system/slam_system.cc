@@ -30,6 +30,8 @@ SlamSystem::SlamSystem(const Options& options)
       validator_(options.camera, options.max_features_per_frame, options.image_margin_px),
       budget_grid_(FeatureGrid::ForImage(options.camera.width, options.camera.height)),
       initializer_(options.measurement(), options.initializer, options.mapper.num_ba_threads),
+      seeded_initializer_(options.measurement(), options.initializer,
+                          options.mapper.num_ba_threads),
       tracker_(options.measurement(), options.tracker, options.drift, &map_),
       mapper_(options.measurement(), options.mapper, options.drift, &map_),
       localization_only_(options.localization_only),
@@ -153,15 +155,17 @@ TrackResult SlamSystem::TrackLocked(const Frame& frame) {
       keyframes_.Push(std::move(*out.keyframe));
     }
   }
-  HandleLost(out, frame, features.size());
+  HandleLost(out, frame, features);
   result.tracking_ms = MsSince(t0);
   return result;
 }
 
-void SlamSystem::HandleLost(const TrackerOutput& out, const Frame& frame, size_t num_features) {
+void SlamSystem::HandleLost(const TrackerOutput& out, const Frame& frame,
+                            const SortedFeatures& features) {
   if (out.state != TrackingState::kLost) {
     lost_streak_ = 0;
     lost_since_.reset();
+    lost_frames_.clear();
     ++tracked_in_map_;
     return;
   }
@@ -177,12 +181,24 @@ void SlamSystem::HandleLost(const TrackerOutput& out, const Frame& frame, size_t
     return;
   }
   const MultiMapOptions& multi = options_.multi_map;
-  if (!multi.enabled || num_features < static_cast<size_t>(multi.min_features)) return;
+  if (!multi.enabled || features.size() < static_cast<size_t>(multi.min_features)) return;
   if (!lost_since_) lost_since_ = frame.timestamp;
+  if (lost_frames_.size() <= static_cast<size_t>(options_.initializer.max_reference_age)) {
+    lost_frames_.push_back(InitialFrame{frame.seq, frame.timestamp, features, Pose3::Identity()});
+  }
   if (frame.timestamp - *lost_since_ >= multi.new_map_after_lost_s) {
     M2S_LOG(kInfo) << "lost for " << frame.timestamp - *lost_since_ << " s; map " << current_map_
                    << " set aside, a new map starts";
+    std::vector<InitialFrame> lost = std::move(lost_frames_);
     StartNewMap(/*keep=*/true);
+    // The new map starts from the lost frames, which get poses once it initialises. Two
+    // initialisers try, the first to initialise makes the map: one from the earliest full view
+    // (the most parallax when the camera moves on), one from the latest (when the camera only
+    // hovers and turns, the earlier views stay ambiguous until they leave the view).
+    initializer_.Seed(lost, Initializer::SeedReference::kLatest);
+    seeded_initializer_.Seed(lost, Initializer::SeedReference::kEarliestFull);
+    seeded_reference_ = seeded_initializer_.reference_seq();
+    if (seeded_reference_ == initializer_.reference_seq()) seeded_reference_.reset();
   }
 }
 
@@ -207,9 +223,10 @@ void SlamSystem::StartNewMap(bool keep) {
     current_map_ = maps_created_++;
   }
   tracker_.Reset();
-  initializer_.Reset();
+  ResetInitializers();
   lost_streak_ = 0;
   lost_since_.reset();
+  lost_frames_.clear();
   tracked_in_map_ = 0;
   StartMapping();
 }
@@ -256,13 +273,24 @@ void SlamSystem::TryMergeSetAsideMaps() {
   }
   M2S_LOG(kInfo) << "map " << from << " merged into map " << into << ": " << alignment.inliers
                  << " of " << alignment.shared_points << " shared points fit, rms "
-                 << alignment.rms_residual << ", scale " << alignment.into_from_from.scale();
+                 << alignment.rms_residual << " (" << alignment.rms_residual / alignment.spread
+                 << " of their spread), scale " << alignment.into_from_from.scale();
   mapper_.GlobalBundleAdjust(kMergeBaIterations, options_.mapper.local_ba_max_points);
 }
 
 TrackResult SlamSystem::Initialise(const Frame& frame, const SortedFeatures& features,
                                    TrackResult result) {
-  auto initial = initializer_.Process(frame.seq, frame.timestamp, features);
+  std::optional<InitialMap> initial;
+  if (seeded_reference_) {
+    initial = seeded_initializer_.Process(frame.seq, frame.timestamp, features);
+    // Once its reference gives way, it would only repeat initializer_.
+    if (!initial && seeded_initializer_.reference_seq() != seeded_reference_) {
+      seeded_initializer_.Reset();
+      seeded_reference_.reset();
+    }
+  }
+  if (!initial) initial = initializer_.Process(frame.seq, frame.timestamp, features);
+  if (initial) ResetInitializers();
   // While a later map initialises, the frames have no pose in any map: they are lost.
   bool later_map = false;
   {
@@ -282,6 +310,12 @@ TrackResult SlamSystem::Initialise(const Frame& frame, const SortedFeatures& fea
   }
   if (!initial) return result;
   return StartFromInitialMap(*initial, result);
+}
+
+void SlamSystem::ResetInitializers() {
+  initializer_.Reset();
+  seeded_initializer_.Reset();
+  seeded_reference_.reset();
 }
 
 TrackResult SlamSystem::StartFromInitialMap(const InitialMap& initial, TrackResult result) {
@@ -361,6 +395,7 @@ SystemStats SlamSystem::Stats() const {
 
 void SlamSystem::ForgetMapsLocked() {
   lost_since_.reset();
+  lost_frames_.clear();
   tracked_in_map_ = 0;
   std::lock_guard<std::mutex> t(trajectory_mutex_);
   std::lock_guard<std::mutex> m(maps_mutex_);
@@ -375,7 +410,7 @@ void SlamSystem::ResetLocked(bool keep_localization_only) {
   StopMapping(/*discard_queued=*/true);
   map_.Clear();
   tracker_.Reset();
-  initializer_.Reset();
+  ResetInitializers();
   validator_.Reset();
   lost_streak_ = 0;
   ForgetMapsLocked();
@@ -421,7 +456,7 @@ Status SlamSystem::LoadMapLocked(const std::string& path) {
     return status;
   }
   tracker_.Reset();
-  initializer_.Reset();
+  ResetInitializers();
   validator_.Reset();
   lost_streak_ = 0;
   ForgetMapsLocked();

@@ -77,6 +77,7 @@ class SlamSystem final : public System {
   // `result`, already recorded: the records of its two views and of the frames between them
   // that it explains get their poses.
   TrackResult StartFromInitialMap(const InitialMap& initial, TrackResult result);
+  void ResetInitializers();
   void ResetLocked(bool keep_localization_only);
   Status LoadMapLocked(const std::string& path);
   void StartMapping();
@@ -87,7 +88,7 @@ class SlamSystem final : public System {
   void AppendRecord(Record* record);
   // Lost-time bookkeeping after a tracked or lost frame; may start a new map (or discard a
   // young one).
-  void HandleLost(const TrackerOutput& out, const Frame& frame, size_t num_features);
+  void HandleLost(const TrackerOutput& out, const Frame& frame, const SortedFeatures& features);
   // Sets the current map aside (when `keep`; otherwise drops it) and starts a new one.
   void StartNewMap(bool keep);
   // Merges the current map into the first set-aside map that aligns with it (the map's
@@ -103,12 +104,19 @@ class SlamSystem final : public System {
   FrameValidator validator_;
   FeatureGrid budget_grid_;  // the feature budget's cells, from the camera
   Initializer initializer_;
+  // A new map's second initialiser, from the earliest full view of the lost frames (HandleLost),
+  // while seeded_reference_ (its reference's seq) holds.
+  Initializer seeded_initializer_;
+  std::optional<int64_t> seeded_reference_;
   Tracker tracker_;
   LocalMapper mapper_;
   bool localization_only_;
   int lost_streak_ = 0;
   std::optional<double> lost_since_;  // frame time of the first lost frame that counts
-  int tracked_in_map_ = 0;            // frames tracked in the current map
+  // The lost frames that count (at most max_reference_age + 1): the next map's initialiser
+  // starts from them.
+  std::vector<InitialFrame> lost_frames_;
+  int tracked_in_map_ = 0;  // frames tracked in the current map
 
   BoundedQueue<KeyframeCandidate> keyframes_;
   std::mutex threads_mutex_;

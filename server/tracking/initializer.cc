@@ -22,6 +22,8 @@ constexpr double kMaxInitRetryDelayS = 0.1;
 // scanned-objects head motion: 15 s), and the views a few attempts later may be weaker still
 // (a drone leaving its first view); after them, the motion RANSAC picks is taken.
 constexpr int kMaxSecondOpinionRefusals = 3;
+// Seed() takes as reference the earliest frame with this share of the most features.
+constexpr double kSeedReferenceShare = 0.8;
 
 }  // namespace
 
@@ -31,16 +33,12 @@ std::optional<InitialMap> Initializer::Process(int64_t seq, double timestamp,
     reference_ = InitialFrame{seq, timestamp, features, Pose3::Identity()};
     frames_since_reference_ = 0;
     next_attempt_time_.reset();
-    since_reference_.clear();
+    kept_frames_.clear();
   };
   // A frame that does not initialise is kept for SolveInbetween (unless it became the
-  // reference); the bound is the reference's age.
+  // reference).
   auto keep_frame = [&]() {
-    if (reference_->seq == seq) return;
-    if (since_reference_.size() > static_cast<size_t>(options_.max_reference_age)) {
-      since_reference_.erase(since_reference_.begin());
-    }
-    since_reference_.push_back(InitialFrame{seq, timestamp, features, Pose3::Identity()});
+    if (reference_->seq != seq) KeepFrame(seq, timestamp, features);
   };
   if (!reference_ || features.size() < static_cast<size_t>(options_.min_points)) {
     if (features.size() >= static_cast<size_t>(options_.min_points)) set_reference();
@@ -154,12 +152,44 @@ std::optional<InitialMap> Initializer::Process(int64_t seq, double timestamp,
                  << map.points.size() << " points ("
                  << (map.used_homography ? "homography" : "essential") << ", median parallax "
                  << two_view->median_parallax_deg << " deg); " << map.inbetween.size() << " of "
-                 << since_reference_.size() << " frames between them solved in " << inbetween_ms
+                 << kept_frames_.size() << " frames between them solved in " << inbetween_ms
                  << " ms";
   reference_.reset();
-  since_reference_.clear();
+  kept_frames_.clear();
   second_opinion_refusals_ = 0;
   return map;
+}
+
+void Initializer::Seed(const std::vector<InitialFrame>& frames, SeedReference which) {
+  Reset();
+  size_t most = 0;
+  for (const InitialFrame& f : frames) most = std::max(most, f.features.size());
+  if (most < static_cast<size_t>(options_.min_points)) return;
+  // kEarliestFull: the earliest frame with nearly the most features, the most parallax by the
+  // next frames, but not a view with a few features at its edge (turning from a bare wall,
+  // say), whose motion stays ambiguous. kLatest: the last frame with min_points features.
+  const auto full = [&](const InitialFrame& f) {
+    return static_cast<double>(f.features.size()) >=
+           (which == SeedReference::kEarliestFull ? kSeedReferenceShare * static_cast<double>(most)
+                                                  : static_cast<double>(options_.min_points));
+  };
+  const auto reference = which == SeedReference::kEarliestFull
+                             ? std::find_if(frames.begin(), frames.end(), full)
+                             : std::find_if(frames.rbegin(), frames.rend(), full).base() - 1;
+  reference_ =
+      InitialFrame{reference->seq, reference->timestamp, reference->features, Pose3::Identity()};
+  frames_since_reference_ = static_cast<int>(frames.end() - reference) - 1;
+  for (auto it = frames.begin(); it != frames.end(); ++it) {
+    if (it != reference) KeepFrame(it->seq, it->timestamp, it->features);
+  }
+}
+
+void Initializer::KeepFrame(int64_t seq, double timestamp, const SortedFeatures& features) {
+  // The bound is the reference's age.
+  if (kept_frames_.size() > static_cast<size_t>(options_.max_reference_age)) {
+    kept_frames_.erase(kept_frames_.begin());
+  }
+  kept_frames_.push_back(InitialFrame{seq, timestamp, features, Pose3::Identity()});
 }
 
 void Initializer::SolveInbetween(InitialMap* map) const {
@@ -167,7 +197,7 @@ void Initializer::SolveInbetween(InitialMap* map) const {
   const PoseOnlyOptions pose_options = tracker_internal::MakePoseOptions(model_);
   std::unordered_map<VertexId, size_t> point_index;
   for (size_t j = 0; j < map->point_ids.size(); ++j) point_index.emplace(map->point_ids[j], j);
-  for (const InitialFrame& f : since_reference_) {
+  for (const InitialFrame& f : kept_frames_) {
     std::vector<Eigen::Vector3d> points;
     std::vector<Eigen::Vector2d> uvs;
     std::vector<VertexId> ids;
@@ -178,7 +208,9 @@ void Initializer::SolveInbetween(InitialMap* map) const {
       points.push_back(map->points[it->second]);
       uvs.push_back(f.features.uvs[i]);
     }
-    if (points.size() < static_cast<size_t>(tracker_internal::kMinTrackedInliers)) continue;
+    // As many of the map's points as an initialisation needs: a view of a few points at its
+    // edge (turning from a bare wall) fits a wrong pose under noise.
+    if (points.size() < static_cast<size_t>(options_.min_points)) continue;
     const double alpha =
         span > 0.0 ? std::clamp((f.timestamp - map->first.timestamp) / span, 0.0, 1.0) : 0.5;
     Pose3 camera_from_world =

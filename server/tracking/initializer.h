@@ -76,9 +76,18 @@ class Initializer {
   std::optional<InitialMap> Process(int64_t seq, double timestamp, const SortedFeatures& features);
   void Reset() {
     reference_.reset(), frames_since_reference_ = 0, next_attempt_time_.reset();
-    since_reference_.clear();
+    kept_frames_.clear();
     second_opinion_refusals_ = 0;
   }
+  // Starts over from frames seen before those Process() gets, in capture order, without an
+  // attempt (the lost frames before a new map starts): one of them becomes the reference
+  // (SeedReference); the others, before it too, are solved once a map exists, as the frames
+  // Process() keeps are. Without a frame of min_points features, the same as Reset().
+  enum class SeedReference {
+    kEarliestFull,  // the earliest with 80 % of the most features: the most parallax
+    kLatest,        // the last with min_points features: the freshest view
+  };
+  void Seed(const std::vector<InitialFrame>& frames, SeedReference which);
   const std::string& last_failure() const { return last_failure_; }
   // The reference frame's seq, when one is held.
   std::optional<int64_t> reference_seq() const {
@@ -89,13 +98,15 @@ class Initializer {
   MeasurementModel model_;
   InitializerOptions options_;
   int num_ba_threads_;
-  // Solves the frames of since_reference_ on `map` (InitialMap::inbetween).
+  // Solves the kept frames on `map` (InitialMap::inbetween).
   void SolveInbetween(InitialMap* map) const;
+  void KeepFrame(int64_t seq, double timestamp, const SortedFeatures& features);
 
   std::optional<InitialFrame> reference_;
   int frames_since_reference_ = 0;
-  // The frames after the reference (at most max_reference_age + 1): solved once a map exists.
-  std::vector<InitialFrame> since_reference_;
+  // The frames after the reference, and the seeded ones before it (at most max_reference_age
+  // + 1 in all): solved once a map exists.
+  std::vector<InitialFrame> kept_frames_;
   std::optional<double> next_attempt_time_;  // no full attempt before this capture time
   int second_opinion_refusals_ = 0;          // since the last map or Reset
   std::string last_failure_;

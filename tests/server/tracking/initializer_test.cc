@@ -76,6 +76,26 @@ void ExpectMatchesTruth(const InitialMap& map, const Views& views,
   EXPECT_NEAR(depths[depths.size() / 2], 1.0, 1e-9);  // scale: median depth 1
 }
 
+// Compares the solved frames between the two views with the truth (truth[seq]: world from
+// camera), up to the monocular scale; returns their seqs in order.
+std::vector<int64_t> ExpectInbetweenMatchesTruth(const InitialMap& map,
+                                                 const std::vector<Pose3>& truth) {
+  const Pose3 origin = truth[map.first.seq];
+  const double scale = (origin.Inverse() * truth[map.second.seq]).translation().norm() /
+                       map.second.world_from_camera.translation().norm();
+  std::vector<int64_t> solved;
+  for (const InitialInbetween& f : map.inbetween) {
+    solved.push_back(f.seq);
+    const Pose3 expected = origin.Inverse() * truth[f.seq];
+    const Pose3& est = f.world_from_camera;
+    EXPECT_LT(RotationAngle(est.rotation().conjugate() * expected.rotation()), 1e-5) << f.seq;
+    EXPECT_LT((est.translation() * scale - expected.translation()).norm(), 1e-5) << f.seq;
+    EXPECT_GE(f.observed_ids.size(), static_cast<size_t>(60)) << f.seq;
+    EXPECT_EQ(f.observed_ids.size(), f.observed_uvs.size());
+  }
+  return solved;
+}
+
 TEST(Initializer, GeneralSceneUsesTheEssentialMatrix) {
   const Options options = TestOptions();
   const Pose3 motion = Motion(0.4, 4.0);
@@ -168,22 +188,48 @@ TEST(Initializer, SolvesTheFramesBetweenTheTwoViews) {
   ASSERT_EQ(map->first.seq, 0);
   const int64_t second = map->second.seq;
   ASSERT_GE(second, 3) << "the motion is meant to need several frames";
-  const Pose3 origin = truth[0];
-  const double scale = (origin.Inverse() * truth[second]).translation().norm() /
-                       map->second.world_from_camera.translation().norm();
-  std::vector<int64_t> solved;
   for (const InitialInbetween& f : map->inbetween) {
-    solved.push_back(f.seq);
-    const Pose3 expected = origin.Inverse() * truth[f.seq];
-    const Pose3& est = f.world_from_camera;
-    EXPECT_LT(RotationAngle(est.rotation().conjugate() * expected.rotation()), 1e-5) << f.seq;
-    EXPECT_LT((est.translation() * scale - expected.translation()).norm(), 1e-5) << f.seq;
     EXPECT_GE(f.observed_ids.size(), map->points.size() * 9 / 10) << f.seq;
-    ASSERT_EQ(f.observed_ids.size(), f.observed_uvs.size());
   }
+  const std::vector<int64_t> solved = ExpectInbetweenMatchesTruth(*map, truth);
   std::vector<int64_t> expected_seqs;
   for (int64_t k = 1; k < second; ++k) {
     if (k != kScrambled) expected_seqs.push_back(k);
+  }
+  EXPECT_EQ(solved, expected_seqs);
+}
+
+// Seed() (the lost frames before a new map starts): the earliest frame with nearly the most
+// features is the reference, not the sparse views before it; once a later frame initialises,
+// the seeded frames before and after the reference get their poses too.
+TEST(Initializer, SeedTakesTheEarliestFullViewAsReferenceAndSolvesTheSeededFrames) {
+  const Options options = TestOptions();
+  Initializer init(options.measurement(), options.initializer, 1);
+  const int kSparse = 3, kSeeded = 10;
+  std::vector<Pose3> truth;
+  std::vector<InitialFrame> seeded;
+  for (int k = 0; k < kSeeded; ++k) {
+    truth.push_back(Motion(0.01 * k, 0.1 * k));
+    SortedFeatures view = MakeViews(options.camera, truth.back(), false).view1;
+    if (k < kSparse) {  // a view of 70 of the points: turning from a bare wall
+      view.ids.resize(70);
+      view.uvs.resize(70);
+    }
+    seeded.push_back(InitialFrame{k, 0.1 * k, view, Pose3::Identity()});
+  }
+  init.Seed(seeded, Initializer::SeedReference::kEarliestFull);
+  std::optional<InitialMap> map;
+  for (int k = kSeeded; k < 80 && !map; ++k) {
+    truth.push_back(Motion(0.01 * k, 0.1 * k));
+    map = init.Process(k, 0.1 * k, MakeViews(options.camera, truth.back(), false).view1);
+  }
+  ASSERT_TRUE(map.has_value()) << init.last_failure();
+  EXPECT_EQ(map->first.seq, kSparse);
+  const int64_t second = map->second.seq;
+  const std::vector<int64_t> solved = ExpectInbetweenMatchesTruth(*map, truth);
+  std::vector<int64_t> expected_seqs;
+  for (int64_t k = 0; k < second; ++k) {
+    if (k != kSparse) expected_seqs.push_back(k);
   }
   EXPECT_EQ(solved, expected_seqs);
 }
