@@ -22,7 +22,38 @@ Status MapAlignmentOptions::Check() const {
   if (!(min_inlier_fraction > 0.0 && min_inlier_fraction <= 1.0)) {
     return Status::Error("min_inlier_fraction must be in (0, 1]");
   }
+  if (!(max_image_error_px > 0.0) || !std::isfinite(max_image_error_px)) {
+    return Status::Error("max_image_error_px must be positive and finite");
+  }
+  if (!(min_image_agreement > 0.0 && min_image_agreement <= 1.0)) {
+    return Status::Error("min_image_agreement must be in (0, 1]");
+  }
   return Status::Ok();
+}
+
+ImageAgreement CheckAlignmentInImages(const Camera& camera, const MapData& into,
+                                      const MapData& from, const Sim3& into_from_from,
+                                      double max_error_px) {
+  // Each of from's keyframes as a camera in into's world (projection ignores the scale).
+  std::unordered_map<KeyframeId, Pose3> camera_from_into;
+  for (const auto& [id, kf] : from.keyframes()) {
+    camera_from_into.emplace(id, into_from_from.TransformPose(kf.world_from_camera).Inverse());
+  }
+  ImageAgreement out;
+  const double max_error_sq = max_error_px * max_error_px;
+  for (const auto& [id, point] : from.points()) {
+    const MapPoint* other = into.point(id);
+    if (other == nullptr) continue;
+    for (const KeyframeId observer : point.observers) {
+      const Keyframe* kf = from.keyframe(observer);
+      const Eigen::Vector2d* uv = kf != nullptr ? kf->Find(id) : nullptr;
+      if (uv == nullptr) continue;
+      ++out.observations;
+      const Eigen::Vector3d p = camera_from_into.at(observer) * other->position;
+      if (p.z() > 0.0 && (camera.Project(p) - *uv).squaredNorm() <= max_error_sq) ++out.agreeing;
+    }
+  }
+  return out;
 }
 
 Expected<MapAlignment> AlignMaps(const MapData& into, const MapData& from,
@@ -78,6 +109,19 @@ Expected<MapAlignment> AlignMaps(const MapData& into, const MapData& from,
   if (out.inliers < options.min_inlier_fraction * shared) {
     return Expected<MapAlignment>::Error(std::to_string(out.inliers) + " of " +
                                          std::to_string(shared) + " shared points agree");
+  }
+  if (options.camera) {
+    const double px = options.max_image_error_px;
+    out.image_agreement = std::min(
+        CheckAlignmentInImages(*options.camera, into, from, out.into_from_from, px).fraction(),
+        CheckAlignmentInImages(*options.camera, from, into, out.into_from_from.Inverse(), px)
+            .fraction());
+    if (out.image_agreement < options.min_image_agreement) {
+      return Expected<MapAlignment>::Error(
+          "the fit holds for " + std::to_string(out.inliers) + " of " + std::to_string(shared) +
+          " shared points but for " + std::to_string(std::lround(100.0 * out.image_agreement)) +
+          " % of their observations in the keyframes");
+    }
   }
   return out;
 }

@@ -17,6 +17,7 @@
 #include <optional>
 #include <unordered_map>
 
+#include "m2s/common/camera.h"
 #include "m2s/common/geometry.h"
 #include "m2s/common/status.h"
 #include "map/map_data.h"
@@ -34,6 +35,11 @@ struct MapAlignmentOptions {
   int max_rounds = 5;
   // Inliers needed, as a fraction of the shared points.
   double min_inlier_fraction = 0.5;
+  // With a camera, the fit must also hold in the images (CheckAlignmentInImages, both ways):
+  // this fraction of the keyframes' observations of shared points within max_image_error_px.
+  std::optional<Camera> camera;
+  double max_image_error_px = 3.0;
+  double min_image_agreement = 0.8;
 
   Status Check() const;
 };
@@ -46,12 +52,32 @@ struct MapAlignment {
   // The inliers' RMS distance from their centroid in `into`: rms_residual / spread is the
   // misfit relative to the size of what is aligned.
   double spread = 0.0;
+  // With MapAlignmentOptions::camera: the smaller of the two ways' agreeing fractions.
+  double image_agreement = 0.0;
 };
 
 // The Sim3 from `from`'s world to `into`'s world, fitted on the points both maps hold.
-// Errors: too few shared points, a degenerate (collinear) set, too few inliers.
+// Errors: too few shared points, a degenerate (collinear) set, too few inliers, (with a
+// camera) a fit the keyframes' images do not agree with.
 Expected<MapAlignment> AlignMaps(const MapData& into, const MapData& from,
                                  const MapAlignmentOptions& options);
+
+// The alignment checked in the images: `into`'s positions of the shared points, moved into
+// `from`'s keyframes by the alignment, against the pixels those keyframes observed them at.
+// A Sim3 fitted in 3D fits the depth errors of a map triangulated over a small baseline
+// within those errors (every shared point "fits") and can still be wrong by degrees and by
+// half the scale; the keyframes' images show it, since a keyframe's pose is determined by all
+// its observations and does not share its points' depth errors.
+struct ImageAgreement {
+  int observations = 0;  // observations of shared points by `from`'s keyframes
+  int agreeing = 0;      // reprojecting within the bound (in front of the camera)
+  double fraction() const {
+    return observations > 0 ? static_cast<double>(agreeing) / observations : 0.0;
+  }
+};
+ImageAgreement CheckAlignmentInImages(const Camera& camera, const MapData& into,
+                                      const MapData& from, const Sim3& into_from_from,
+                                      double max_error_px);
 
 // Copies `from` into `into`, moved by into_from_from. Keyframes keep their ids, or with
 // `first_keyframe_id` get first_keyframe_id, first_keyframe_id + 1, ... in `from`'s id order

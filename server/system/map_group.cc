@@ -185,9 +185,7 @@ void MapGroupImpl::RunJobLocked(const Job& job) {
 
 void MapGroupImpl::TryMergeLocked(GroupAgent* agent, int map_id,
                                   std::chrono::steady_clock::time_point queued) {
-  MapAlignmentOptions align;
-  align.min_shared_points = options_.multi_map.merge_min_shared_points;
-  align.min_inlier_fraction = options_.multi_map.merge_min_inlier_fraction;
+  const MapAlignmentOptions align = MergeAlignmentOptions(options_);
   bool enough_shared = false;
   std::optional<MapAlignment> alignment;
   map_.Read([&](const MapData& group) {
@@ -225,7 +223,8 @@ void MapGroupImpl::TryMergeLocked(GroupAgent* agent, int map_id,
   M2S_LOG(kInfo) << "map group: agent " << agent->index() << "'s map " << map_id
                  << " merged into the group's map (" << alignment->inliers << " of "
                  << alignment->shared_points << " shared points fit, rms "
-                 << alignment->rms_residual << ", scale " << alignment->into_from_from.scale()
+                 << alignment->rms_residual << ", " << alignment->image_agreement * 100.0
+                 << " % of their observations agree, scale " << alignment->into_from_from.scale()
                  << ", " << ms << " ms)";
   agent->NotifyMerged(map_id, alignment->into_from_from, std::move(ids));
   mapper_.GlobalBundleAdjust(kMergeBaIterations, options_.mapper.local_ba_max_points);

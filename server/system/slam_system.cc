@@ -233,9 +233,7 @@ void SlamSystem::StartNewMap(bool keep) {
 
 void SlamSystem::TryMergeSetAsideMaps() {
   if (!options_.multi_map.enabled) return;
-  MapAlignmentOptions align;
-  align.min_shared_points = options_.multi_map.merge_min_shared_points;
-  align.min_inlier_fraction = options_.multi_map.merge_min_inlier_fraction;
+  const MapAlignmentOptions align = MergeAlignmentOptions(options_);
   std::optional<size_t> base;
   MapAlignment alignment;
   {
@@ -274,7 +272,9 @@ void SlamSystem::TryMergeSetAsideMaps() {
   M2S_LOG(kInfo) << "map " << from << " merged into map " << into << ": " << alignment.inliers
                  << " of " << alignment.shared_points << " shared points fit, rms "
                  << alignment.rms_residual << " (" << alignment.rms_residual / alignment.spread
-                 << " of their spread), scale " << alignment.into_from_from.scale();
+                 << " of their spread), " << alignment.image_agreement * 100.0
+                 << " % of their observations in the keyframes agree, scale "
+                 << alignment.into_from_from.scale();
   mapper_.GlobalBundleAdjust(kMergeBaIterations, options_.mapper.local_ba_max_points);
 }
 

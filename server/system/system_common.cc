@@ -7,6 +7,16 @@
 
 namespace m2s::slam {
 
+MapAlignmentOptions MergeAlignmentOptions(const Options& options) {
+  MapAlignmentOptions align;
+  align.min_shared_points = options.multi_map.merge_min_shared_points;
+  align.min_inlier_fraction = options.multi_map.merge_min_inlier_fraction;
+  align.camera = options.camera;
+  align.max_image_error_px = kMergeImageErrorSigmas * options.pixel_sigma;
+  align.min_image_agreement = kMergeMinImageAgreement;
+  return align;
+}
+
 bool TakeFrame(const Frame& frame, bool shut_down, int feature_budget, const FeatureGrid& grid,
                FrameValidator* validator, SortedFeatures* features, TrackResult* result,
                SystemStats* stats) {

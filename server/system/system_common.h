@@ -14,6 +14,7 @@
 
 #include "m2s/slam/system.h"
 #include "map/map_data.h"
+#include "map/map_merge.h"
 #include "tracking/feature_budget.h"
 #include "tracking/frame_validation.h"
 #include "tracking/initializer.h"
@@ -49,6 +50,15 @@ inline bool IsYoungMap(size_t keyframes, int tracked_in_map) {
 }
 // Iterations of the global bundle adjustment that refines two maps after a merge.
 constexpr int kMergeBaIterations = 15;
+// A merge's Sim3 must hold in the keyframes' images (MapAlignmentOptions::camera): this
+// fraction of the observations of shared points within this many pixel sigmas (chi-square
+// with 2 degrees of freedom at 98.9 %). A wrong Sim3 that fits the shared points in 3D
+// reprojects 1-2 % of them (testmodels drone, noisy); a right one fitted to a young map's
+// depth errors a third or more (scanned-objects drone with occlusion: 36 %).
+constexpr double kMergeImageErrorSigmas = 3.0;
+constexpr double kMergeMinImageAgreement = 0.25;
+// How two maps of a system or a group are aligned for a merge (multi_map options, the camera).
+MapAlignmentOptions MergeAlignmentOptions(const Options& options);
 // System::RefineMap: iterations of the global bundle adjustment over every keyframe and point.
 constexpr int kFinalBaIterations = 20;
 

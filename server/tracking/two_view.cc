@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <sstream>
 
 #include <Eigen/Eigenvalues>
 #include <opencv2/calib3d.hpp>
@@ -33,6 +34,7 @@ constexpr double kDistinctSigmas = 2.0;
 constexpr double kChi2FiveDof999 = 20.52;
 
 double DegToRad(double deg) { return deg * M_PI / 180.0; }
+double RadToDeg(double rad) { return rad * 180.0 / M_PI; }
 
 struct Matches {
   std::vector<VertexId> ids;
@@ -400,9 +402,15 @@ std::optional<TwoViewReconstruction> ReconstructTwoViewUnguarded(
   // distant points leave a valley of motions that fit them within the noise (exact data too),
   // and RANSAC's pick in it is arbitrary.
   const std::optional<MotionUncertainty> uncertainty = TwoViewMotionUncertainty(
-      model.camera, model.pixel_sigma, out.camera1_from_camera0, out.points);
+      model.camera, model.pixel_sigma, out.camera1_from_camera0, best.points);
   if (!WellDetermined(uncertainty, options)) {
-    return fail(RefusalKind::kWeakGeometry, "the views leave the motion undetermined");
+    std::ostringstream why;
+    why << "the views leave the motion undetermined";
+    if (uncertainty) {
+      why << " (rotation sigma " << RadToDeg(uncertainty->rotation_rad) << " deg, direction sigma "
+          << RadToDeg(uncertainty->direction_rad) << " deg)";
+    }
+    return fail(RefusalKind::kWeakGeometry, why.str());
   }
   return out;
 }

@@ -32,9 +32,11 @@ World MakeWorld() {
 }
 
 // A map of points [first, last) seen by keyframes `poses`, all expressed in a world
-// `map_from_world` away from the true one; keyframe ids from `first_keyframe`.
+// `map_from_world` away from the true one; keyframe ids from `first_keyframe`. The keyframes'
+// pixels are the points' true projections in `camera` (the world's scale does not change them).
 MapData BuildMap(const World& w, int first, int last, const std::vector<int>& keyframes,
-                 const Sim3& map_from_world, KeyframeId first_keyframe) {
+                 const Sim3& map_from_world, KeyframeId first_keyframe,
+                 const Camera& camera = Camera()) {
   MapData m;
   KeyframeId id = first_keyframe;
   for (const int k : keyframes) {
@@ -44,7 +46,7 @@ MapData BuildMap(const World& w, int first, int last, const std::vector<int>& ke
     kf.world_from_camera = map_from_world.TransformPose(w.poses[k]);
     for (int i = first; i < last; ++i) {
       kf.ids.push_back(static_cast<VertexId>(i));
-      kf.uvs.emplace_back(i, k);  // not used by alignment or merging
+      kf.uvs.push_back(camera.Project(w.poses[k].Inverse() * w.points[i]));
     }
     m.AddKeyframe(std::move(kf));
   }
@@ -135,6 +137,62 @@ TEST(MapMerge, KeepsKeyframeIdsAndCarriesLinksOfRemovedKeyframesThroughTheScale)
     EXPECT_LT((pose->translation() - w.poses[truth].translation()).norm(), 1e-10) << id;
     EXPECT_LT(pose->rotation().angularDistance(w.poses[truth].rotation()), 1e-10) << id;
   }
+}
+
+TEST(MapMerge, ImagesAgreeWithTheTrueSim3AndNotWithOneThreeDegreesOff) {
+  const World w = MakeWorld();
+  const Camera camera;
+  const MapData a = BuildMap(w, 0, 200, {0, 1, 2}, Sim3(), 0, camera);
+  const MapData b = BuildMap(w, 100, 300, {3, 4, 5}, kBFromWorld, 0, camera);
+  // 100 shared points, each seen by 3 keyframes of either map.
+  const ImageAgreement exact = CheckAlignmentInImages(camera, a, b, kBFromWorld.Inverse(), 0.01);
+  EXPECT_EQ(exact.observations, 300);
+  EXPECT_EQ(exact.agreeing, 300);
+  const ImageAgreement back = CheckAlignmentInImages(camera, b, a, kBFromWorld, 0.01);
+  EXPECT_EQ(back.agreeing, 300);
+  // Three degrees about the vertical through the scene's centre (0, 0, 3.5) move a point 1 m
+  // from it by 52 mm, 7-26 px at these depths and focal length; points near the axis, or
+  // moving along their ray, move less in the image and may stay within 3 px.
+  const Pose3 turn(Eigen::Quaterniond(Eigen::AngleAxisd(M_PI / 60.0, Eigen::Vector3d::UnitY())),
+                   Eigen::Vector3d::Zero());
+  const Pose3 about_centre = Pose3(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0, 0, 3.5)) *
+                             turn *
+                             Pose3(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0, 0, -3.5));
+  const ImageAgreement off =
+      CheckAlignmentInImages(camera, a, b, Sim3(about_centre) * kBFromWorld.Inverse(), 3.0);
+  EXPECT_EQ(off.observations, 300);
+  EXPECT_LT(off.fraction(), 0.25);
+}
+
+TEST(MapMerge, WithACameraRefusesAFitTheImagesContradict) {
+  const World w = MakeWorld();
+  const Camera camera;
+  const MapData a = BuildMap(w, 0, 200, {0, 1, 2}, Sim3(), 0, camera);
+  MapData b = BuildMap(w, 100, 300, {3, 4, 5}, kBFromWorld, 0, camera);
+  MapAlignmentOptions with_images;
+  with_images.camera = camera;
+  const Expected<MapAlignment> right = AlignMaps(a, b, with_images);
+  ASSERT_TRUE(right) << right.error();
+  EXPECT_DOUBLE_EQ(right->image_agreement, 1.0);
+  // b's structure wrong the way a small baseline leaves it: depths along the rays of its first
+  // keyframe stretched by 30 % about 3.5 m (2 m -> 1.55 m, 5 m -> 5.45 m; its keyframes and
+  // their pixels stay true). A Sim3 still fits the shared points in 3D, most of them inliers.
+  const Pose3 b_from_camera = b.keyframe(0)->world_from_camera;
+  const double b_scale = kBFromWorld.scale();
+  for (VertexId id = 100; id < 300; ++id) {
+    const Eigen::Vector3d in_camera = b_from_camera.Inverse() * b.point(id)->position;
+    const double depth = in_camera.z() / b_scale;  // metres
+    const double stretched = 1.3 * depth - 0.3 * 3.5;
+    b.SetPointPosition(id, b_from_camera * (in_camera * (stretched / depth)));
+  }
+  const Expected<MapAlignment> in_3d = AlignMaps(a, b, MapAlignmentOptions{});
+  ASSERT_TRUE(in_3d) << in_3d.error();
+  EXPECT_GE(in_3d->inliers, 95);
+  EXPECT_GT(SimError(in_3d->into_from_from, kBFromWorld.Inverse()), 0.05);
+  const Expected<MapAlignment> checked = AlignMaps(a, b, with_images);
+  ASSERT_FALSE(checked);
+  EXPECT_NE(checked.error().find("observations in the keyframes"), std::string::npos)
+      << checked.error();
 }
 
 TEST(MapMerge, RefusesTooFewSharedOrDegeneratePoints) {
