@@ -243,8 +243,9 @@ void RegisterSlam(py::module_& m) {
       .def("reset", &PySystem::Reset)
       .def("refine_map", &PySystem::RefineMap,
            "A global bundle adjustment of the whole map, as at the end of a session, then "
-           "every other tracked frame re-solved on the refined map (System::RefineMap): "
-           "trajectory() and map_points() follow it.")
+           "every other tracked frame re-solved on the refined map and frames without a pose "
+           "solved on it where it determines them (System::RefineMap): trajectory() and "
+           "map_points() follow it.")
       .def("save_map", &PySystem::SaveMap, py::arg("path"))
       .def("load_map", &PySystem::LoadMap, py::arg("path"))
       .def("shutdown", &PySystem::Shutdown);

@@ -133,7 +133,12 @@ TrackResult SlamSystem::TrackLocked(const Frame& frame) {
                 out.reference_from_camera,
                 result.keyframe_created,
                 frame.ground_truth_world_from_camera};
-  KeepObservations(out, options_.frame_observations_kept, &record);
+  // A frame without a pose keeps its features: RefineMap may solve it on the final map.
+  if (HasPose(out.state)) {
+    KeepObservations(out.observed_ids, out.observed_uvs, options_.frame_observations_kept, &record);
+  } else {
+    KeepObservations(features.ids, features.uvs, options_.frame_observations_kept, &record);
+  }
   record.correction_epoch = tracker_.correction_epoch();
   AppendRecord(&record);
   result.map_id = record.map_id;
@@ -301,6 +306,7 @@ TrackResult SlamSystem::Initialise(const Frame& frame, const SortedFeatures& fea
   Record record{frame.seq,    frame.timestamp, waiting, Pose3(),
                 std::nullopt, Pose3(),         false,   frame.ground_truth_world_from_camera};
   record.correction_epoch = map_.correction().epoch;
+  KeepObservations(features.ids, features.uvs, options_.frame_observations_kept, &record);
   AppendRecord(&record);
   result.state = waiting;
   result.map_id = record.map_id;
@@ -436,6 +442,9 @@ void SlamSystem::RefineMap() {
       for (Record& r : trajectory_) {
         if (r.map_id == current_map_) RefineFramePose(options_.measurement(), current, &r);
       }
+      const int solved = SolveUnposedFrames(options_.measurement(), current, current_map_,
+                                            options_.initializer.min_points, &trajectory_);
+      if (solved > 0) M2S_LOG(kInfo) << solved << " frames without a pose solved on the map";
     });
   });
 }

@@ -3,6 +3,7 @@
 #include <unordered_map>
 
 #include "m2s/common/numeric.h"
+#include "tracking/motion_uncertainty.h"
 #include "tracking/tracker_internal.h"
 
 namespace m2s::slam {
@@ -115,15 +116,15 @@ TrajectoryEntry ToEntry(const TrajectoryRecord& record, const MapData* map) {
   return e;
 }
 
-void KeepObservations(const TrackerOutput& out, int kept, TrajectoryRecord* record) {
+void KeepObservations(const std::vector<VertexId>& ids, const std::vector<Eigen::Vector2d>& uvs,
+                      int kept, TrajectoryRecord* record) {
   if (kept <= 0) return;  // EvenlySpacedIndices reads 0 as "every one"
-  const std::vector<size_t> keep =
-      EvenlySpacedIndices(out.observed_ids.size(), static_cast<size_t>(kept));
+  const std::vector<size_t> keep = EvenlySpacedIndices(ids.size(), static_cast<size_t>(kept));
   record->observed_ids.reserve(keep.size());
   record->observed_uvs.reserve(keep.size());
   for (const size_t i : keep) {
-    record->observed_ids.push_back(out.observed_ids[i]);
-    record->observed_uvs.push_back(out.observed_uvs[i].cast<float>());
+    record->observed_ids.push_back(ids[i]);
+    record->observed_uvs.push_back(uvs[i].cast<float>());
   }
 }
 
@@ -151,6 +152,108 @@ bool RefineFramePose(const MeasurementModel& model, const MapData& map, Trajecto
   }
   record->reference_from_camera = reference->Inverse() * solved.Inverse();
   return true;
+}
+
+namespace {
+
+// SolveUnposedFrames: a pose solved without a motion prior must have its centre determined to
+// this fraction of the median depth, and the poses solved from either side must agree within
+// it and this angle.
+constexpr double kUnposedAgreement = 0.01;
+constexpr double kUnposedAgreementRad = M_PI / 180.0;
+
+// The record's observations that are points of `map`.
+void MappedObservations(const MapData& map, const TrajectoryRecord& record,
+                        std::vector<Eigen::Vector3d>* points, std::vector<Eigen::Vector2d>* uvs) {
+  for (size_t i = 0; i < record.observed_ids.size(); ++i) {
+    const MapPoint* p = map.point(record.observed_ids[i]);
+    if (p == nullptr || p->observers.empty()) continue;
+    points->push_back(p->position);
+    uvs->push_back(record.observed_uvs[i].cast<double>());
+  }
+}
+
+}  // namespace
+
+int SolveUnposedFrames(const MeasurementModel& model, const MapData& map, int map_id,
+                       int min_points, std::vector<TrajectoryRecord>* records) {
+  std::vector<TrajectoryRecord>& r = *records;
+  struct Solved {
+    Pose3 world_from_camera;
+    KeyframeId reference = 0;  // of the posed frame the sweep came from
+    double depth = 0.0;        // the inliers' median depth
+  };
+  // Solves r[i] from `start`.
+  auto solve = [&](size_t i, const Solved& start) -> std::optional<Solved> {
+    std::vector<Eigen::Vector3d> points;
+    std::vector<Eigen::Vector2d> uvs;
+    MappedObservations(map, r[i], &points, &uvs);
+    if (points.size() < static_cast<size_t>(std::max(min_points, 1))) return std::nullopt;
+    Pose3 camera_from_world = start.world_from_camera.Inverse();
+    const PoseOnlyResult result = OptimizePose(
+        model.camera, tracker_internal::MakePoseOptions(model), points, uvs, &camera_from_world);
+    if (!result.converged || !camera_from_world.AllFinite() ||
+        result.num_inliers <
+            tracker_internal::kSparseViewInlierFraction * static_cast<double>(points.size())) {
+      return std::nullopt;
+    }
+    std::vector<Eigen::Vector3d> inliers;
+    for (size_t k = 0; k < points.size(); ++k) {
+      if (result.inlier[k]) inliers.push_back(points[k]);
+    }
+    const double depth = MedianDepth(camera_from_world, inliers);
+    if (!(PoseCentreSigma(model.camera, model.pixel_sigma, camera_from_world, inliers) <=
+          kUnposedAgreement * depth)) {
+      return std::nullopt;
+    }
+    return Solved{camera_from_world.Inverse(), start.reference, depth};
+  };
+  auto posed = [&](size_t i) -> std::optional<Solved> {
+    if (!HasPose(r[i].state) || r[i].map_id != map_id || !r[i].reference) return std::nullopt;
+    const std::optional<Pose3> reference = map.ResolveKeyframePose(*r[i].reference);
+    if (!reference) return std::nullopt;
+    return Solved{*reference * r[i].reference_from_camera, *r[i].reference, 0.0};
+  };
+  auto unposed = [&](size_t i) { return !HasPose(r[i].state) && !r[i].observed_ids.empty(); };
+  // One sweep in each direction, each solved frame starting the next.
+  auto sweep = [&](bool forward) {
+    std::vector<std::optional<Solved>> out(r.size());
+    std::optional<Solved> last;
+    for (size_t k = 0; k < r.size(); ++k) {
+      const size_t i = forward ? k : r.size() - 1 - k;
+      if (std::optional<Solved> p = posed(i)) {
+        last = p;
+      } else if (last && unposed(i)) {
+        out[i] = solve(i, *last);
+        if (out[i]) last = out[i];
+      }
+    }
+    return out;
+  };
+  const std::vector<std::optional<Solved>> from_before = sweep(true), from_after = sweep(false);
+  int solved = 0;
+  for (size_t i = 0; i < r.size(); ++i) {
+    const std::optional<Solved>& a = from_before[i];
+    const std::optional<Solved>& b = from_after[i];
+    // Both sides must find the same pose: a view its points leave ambiguous (a few of them at
+    // its edge) converges to wherever its start lies.
+    if (!a || !b) continue;
+    const double apart =
+        (a->world_from_camera.translation() - b->world_from_camera.translation()).norm();
+    const double turned =
+        a->world_from_camera.rotation().angularDistance(b->world_from_camera.rotation());
+    if (!(apart <= kUnposedAgreement * a->depth) || !(turned <= kUnposedAgreementRad)) continue;
+    const std::optional<Pose3> reference = map.ResolveKeyframePose(a->reference);
+    if (!reference) continue;
+    TrajectoryRecord& record = r[i];
+    record.state = TrackingState::kOk;
+    record.map_id = map_id;
+    record.reference = a->reference;
+    record.world_from_camera = a->world_from_camera;
+    record.reference_from_camera = reference->Inverse() * a->world_from_camera;
+    ++solved;
+  }
+  return solved;
 }
 
 }  // namespace m2s::slam

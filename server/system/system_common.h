@@ -102,8 +102,11 @@ void StartTracking(const InitialMap& initial, KeyframeId second, double timestam
 // gone, the pose at tracking time).
 TrajectoryEntry ToEntry(const TrajectoryRecord& record, const MapData* map);
 
-// Keeps an even subset of at most `kept` of the tracker's observations in the record.
-void KeepObservations(const TrackerOutput& out, int kept, TrajectoryRecord* record);
+// Keeps an even subset of at most `kept` of the observations (ids and pixels, parallel) in
+// the record: the tracker's associated points for a tracked frame, the frame's features for
+// one without a pose.
+void KeepObservations(const std::vector<VertexId>& ids, const std::vector<Eigen::Vector2d>& uvs,
+                      int kept, TrajectoryRecord* record);
 
 // Re-solves the pose of a tracked frame that is not a keyframe against `map` (after a global
 // bundle adjustment): pose-only, from its current estimate, on the map points it observed.
@@ -111,5 +114,19 @@ void KeepObservations(const TrackerOutput& out, int kept, TrajectoryRecord* reco
 // converges with at least 75 % of those observations as inliers (tracking's sparse-view
 // rule). Returns whether it did.
 bool RefineFramePose(const MeasurementModel& model, const MapData& map, TrajectoryRecord* record);
+
+// Gives poses on `map` (the map `map_id`, after RefineMap's bundle adjustment) to frames that
+// have none (lost, or waiting for a map) and kept their features, between two frames with a
+// pose in that map. Each is solved pose-only on the map points among its features twice:
+// starting from the nearest frame with a pose before it (a sweep forward in time, each solved
+// frame starting the next, as tracking solves from the previous frame) and from the nearest
+// after it (a sweep backward). A solve counts when at least `min_points` map points are seen,
+// 75 % of them inliers (tracking's sparse-view rule), and they determine the camera's centre
+// within 5 % of their median depth (tracking's rule); the frame takes the pose when both
+// solves count and agree within 1 % of that depth and 1 degree. It then counts as tracked,
+// relative to the reference keyframe of the frame before it. Returns how many frames got a
+// pose.
+int SolveUnposedFrames(const MeasurementModel& model, const MapData& map, int map_id,
+                       int min_points, std::vector<TrajectoryRecord>* records);
 
 }  // namespace m2s::slam

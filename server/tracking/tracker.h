@@ -135,7 +135,7 @@ class Tracker {
   // Adds a measured camera centre and updates measured_speed_.
   void RecordMeasuredCentre(double timestamp, const Eigen::Vector3d& centre);
   // Whether the inliers determine the pose's centre (its standard deviation for pixel_sigma
-  // noise within kMaxCentreSigmaFraction of their median depth; tracker_recovery.cc).
+  // noise within kMaxCentreSigmaFraction of their median depth; tracker_internal.h).
   bool PoseDetermined(const Association& a, const std::vector<bool>& inlier,
                       const Pose3& camera_from_world) const;
   // Inliers a pose classified on `num_points` associated points needs:

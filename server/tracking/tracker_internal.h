@@ -21,6 +21,10 @@ constexpr double kSparseViewInlierFraction = 0.75;
 constexpr int kMinTrackedInliers = 8;
 constexpr int kMinRotationOnlyInliers = 12;
 constexpr int kMinOverrulingPoints = 12;
+// A pose's centre must be known to this standard deviation (fraction of the median depth of its
+// inliers), or the frame is lost: a few points bunched at the edge of a view fit poses
+// decimetres apart within the noise.
+constexpr double kMaxCentreSigmaFraction = 0.05;
 
 // Pose-only refinement options for the measurement model: Huber at the inlier bound.
 inline PoseOnlyOptions MakePoseOptions(const MeasurementModel& model) {

@@ -18,6 +18,7 @@
 
 namespace m2s::slam {
 
+using tracker_internal::kMaxCentreSigmaFraction;
 using tracker_internal::kMinRotationOnlyInliers;
 using tracker_internal::kMinTrackedInliers;
 using tracker_internal::kSparseViewInlierFraction;
@@ -35,10 +36,6 @@ constexpr double kRotationKeyframeOverlap = 0.5;
 // (fraction of the keyframe's median depth). A head turning in place moves its eyes by
 // centimetres; a drone yawing in flight leaves its centre at once.
 constexpr double kRotationOnlyMaxShift = 0.02;
-// A pose's centre must be known to this standard deviation (fraction of the median depth of its
-// inliers), or the frame is lost: a few points bunched at the edge of a view fit poses
-// decimetres apart within the noise.
-constexpr double kMaxCentreSigmaFraction = 0.05;
 
 // camera_from_world by PnP + RANSAC (OpenCV); nullopt when RANSAC finds no pose or OpenCV
 // throws on degenerate input (logged: a failed relocalisation, never a thrown frame).

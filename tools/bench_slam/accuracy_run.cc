@@ -254,13 +254,15 @@ Expected<RunMetrics> RunAccuracy(const Scene& scene, const Sequence& sequence,
     consumer.join();
   }
   m.wall_s = std::chrono::duration<double>(Clock::now() - start).count();
+  // RefineMap may give poses to frames Track() returned without one (late, like those solved
+  // once a new map initialises).
+  if (config.refine_map) system.RefineMap();
   std::vector<bool> final_pose(visible.size(), false);
   for (const slam::TrajectoryEntry& e : system.Trajectory()) {
     if (HasPose(e.state) && e.seq >= 0 && e.seq < static_cast<int64_t>(final_pose.size()))
       final_pose[e.seq] = true;
   }
   CountResults(results, times_ms, visible, final_pose, config.min_visible_for_lost, &m);
-  if (config.refine_map) system.RefineMap();
   Evaluate(scene, *ground_truth, system, results, config.dump_prefix, &m);
   system.Shutdown();
   return m;

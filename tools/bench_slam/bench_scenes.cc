@@ -211,7 +211,8 @@ int main(int argc, char** argv) {
   bool no_refine = false;
   app.add_flag("--no-refine", no_refine,
                "measure the final trajectory and map without System::RefineMap() (the global "
-               "bundle adjustment at the end of each run, then every frame re-solved)");
+               "bundle adjustment at the end of each run, then every frame re-solved and frames "
+               "without a pose solved where the map determines them)");
   bool verbose = false;
   app.add_flag("--verbose", verbose,
                "log the SLAM system's debug messages (initialisation refusals, lost frames)");

@@ -85,7 +85,9 @@ python3 -c 'import json, sys; json.dump([r for f in sys.argv[2:] for r in json.l
   echo
   echo "Columns: *visible* is the median number of vertices per frame; *init* the frames before"
   echo "the first pose; *tracked* the frames with a pose, in brackets those that got it only"
-  echo "once their map initialised (the frames between its two views); *lost* the frames after"
+  echo "later: once their map initialised (the lost frames and those between its two views), or"
+  echo "in the refinement that ends the run (frames without a pose solved on the refined map"
+  echo "[map_refinement.md](../design/map_refinement.md)); *lost* the frames after"
   echo "the first pose without one and with at least 20 visible"
   echo "vertices; *few-visible untracked / frames* the frames without a pose that had fewer than"
   echo "20 visible vertices, out of all frames with fewer than 20; *maps* the SLAM maps started (a"
@@ -93,7 +95,8 @@ python3 -c 'import json, sys; json.dump([r for f in sys.argv[2:] for r in json.l
   echo "in maps not merged into the final one; ATE is the Sim3-aligned error"
   echo "of the final trajectory over the tracked frames, after the refinement that ends each run"
   echo "(\`System::RefineMap\`: a global bundle adjustment, then every frame re-solved on the refined"
-  echo "map; \`bench_scenes --no-refine\` leaves it out); *ATE"
+  echo "map, and frames without a pose solved on it where it determines them; \`bench_scenes"
+  echo "--no-refine\` leaves it out); *ATE"
   echo "online* the same error of the poses as tracking returned them; map error compares the map"
   echo "points with their vertices under the final alignment."
   if [ -s "$work/large.md" ]; then

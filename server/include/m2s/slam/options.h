@@ -155,7 +155,8 @@ struct Options {
   int feature_budget = 2000;
   // Each tracked frame keeps at most this many of the map points its pose was solved on (an
   // even subset of at most tracker.max_points, 12 bytes each: 7 KB a frame), so that
-  // System::RefineMap() re-solves it on the refined map; 0: none (bounded memory for sessions
+  // System::RefineMap() re-solves it on the refined map; a frame without a pose keeps as many
+  // of its features, so that RefineMap() may solve it. 0: none (bounded memory for sessions
   // that never call RefineMap), and RefineMap() moves frames with their keyframes only. With
   // 100, the noisy scene-diversity runs end 0.2-3.2 mm worse (docs/design/map_refinement.md).
   int frame_observations_kept = 600;
