@@ -1,11 +1,13 @@
 // Two-view initialisation on hard geometry, checked against the known motion: a planar wall,
 // sparse points, a dense cluster with a few sparse points, points bunched in a small distant
-// part of the image, a camera orbiting a compact object; exact and noisy projections. The
-// initialiser must either give the true motion (up to scale) or refuse; and the motion uncertainty
-// it gates on must match an independent numerical computation.
+// part of the image, a camera orbiting a compact object, a drone over a nearly planar floor
+// (disabled: a known defect); exact and noisy projections. The initialiser must either give the
+// true motion (up to scale) or refuse; and the motion uncertainty it gates on must match an
+// independent numerical computation.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -174,7 +176,7 @@ TEST(InitializerGeometry, ExactDataGivesTheTrueMotionOrNone) {
 
 // 0.5 px noise: a map's motion is within three of the gate's standard deviations of the truth
 // (max_rotation_sigma_deg, max_direction_sigma_deg are for pixel_sigma = 1 px; measured worst
-// 0.58 and 8.2 degrees, 9 of 60 accepted).
+// 0.29 and 2.3 degrees, 8 of 60 accepted).
 TEST(InitializerGeometry, NoisyDataGivesAMotionNearTheTruthOrNone) {
   const InitializerOptions defaults;
   for (const Layout layout : kLayouts) {
@@ -212,7 +214,7 @@ TEST(InitializerGeometry, BunchedPointsAreRefused) {
 }
 
 // A short sequence: the camera walks sideways past a dense cluster and a few sparse points. The
-// first attempts are refused; a later frame (measured: the 8th) initialises with the true
+// first attempts are refused; a later frame (measured: the 7th) initialises with the true
 // motion.
 TEST(InitializerGeometry, ClusterSequenceInitialisesLaterWithTheTrueMotion) {
   Options options;
@@ -235,6 +237,42 @@ TEST(InitializerGeometry, ClusterSequenceInitialisesLaterWithTheTrueMotion) {
   const MotionError e = ErrorOf(map->second.world_from_camera, truth);
   EXPECT_LT(e.rotation_deg, 1e-3);
   EXPECT_LT(e.direction_deg, 1e-2);
+}
+
+struct SequenceOutcome {
+  int made = 0;
+  int latest = 0;  // the latest second view of a map
+  MotionError worst{0.0, 0.0};
+};
+
+// A sequence's frames at 30 fps: the features of `frame`, its true world_from_camera in *truth.
+using FrameSource = std::function<SortedFeatures(int frame, Pose3* truth)>;
+
+// 20 sequences through the initialiser, the n-th drawn by `start` from Uniform(first_seed + n);
+// each runs until it makes a map (at most 90 frames), which is compared with the true motion.
+SequenceOutcome RunSequences(const Options& options, uint64_t first_seed,
+                             const std::function<FrameSource(Uniform*)>& start) {
+  SequenceOutcome out;
+  for (uint64_t trial = 0; trial < 20; ++trial) {
+    Uniform u(first_seed + trial);
+    const FrameSource next = start(&u);
+    Initializer init(options.measurement(), options.initializer, 1);
+    std::optional<InitialMap> map;
+    std::vector<Pose3> truths;
+    for (int frame = 0; frame < 90 && !map; ++frame) {
+      truths.emplace_back();
+      const SortedFeatures view = next(frame, &truths.back());
+      map = init.Process(frame, frame / 30.0, view);
+    }
+    if (!map) continue;
+    ++out.made;
+    out.latest = std::max(out.latest, static_cast<int>(map->second.seq));
+    const Pose3 truth = truths[map->first.seq].Inverse() * truths[map->second.seq];
+    const MotionError e = ErrorOf(map->second.world_from_camera, truth);
+    out.worst.rotation_deg = std::max(out.worst.rotation_deg, e.rotation_deg);
+    out.worst.direction_deg = std::max(out.worst.direction_deg, e.direction_deg);
+  }
+  return out;
 }
 
 // A hand-held camera circling a compact object keeps it in the middle of the view. Rotation
@@ -267,43 +305,82 @@ std::vector<Eigen::Vector3d> CompactObjectsScene(Uniform* u) {
 // The camera orbits the object at 0.15-0.4 m/s, 30 fps, 0.5 px noise and 1 % of the features at
 // another feature's place; frames go through the initialiser until it makes a map. The map's
 // motion must be within three of the gate's standard deviations of the truth. Measured over 20
-// orbits: 19 maps, worst 0.94 degrees of rotation; without the second opinions of the twin
+// orbits: 19 maps, worst 0.52 degrees of rotation; without the second opinions of the twin
 // check, worst 1.97 degrees (3 maps over 1 degree).
 TEST(InitializerGeometry, OrbitAroundACompactObjectInitialisesWithTheTrueMotion) {
   Options options;
   options.camera = Camera();
-  const InitializerOptions& gate = options.initializer;
-  int made = 0;
-  MotionError worst{0.0, 0.0};
-  for (uint64_t trial = 0; trial < 20; ++trial) {
-    Uniform u(900 + trial);
-    const std::vector<Eigen::Vector3d> points = CompactObjectsScene(&u);
-    Initializer init(options.measurement(), gate, 1);
-    std::optional<InitialMap> map;
-    std::vector<Pose3> truths;
-    const double speed = u(0.15, 0.4), lift = u(-0.05, 0.05);
-    for (int frame = 0; frame < 90 && !map; ++frame) {
+  const SequenceOutcome o = RunSequences(options, 900, [&](Uniform* u) -> FrameSource {
+    const std::vector<Eigen::Vector3d> points = CompactObjectsScene(u);
+    const double speed = (*u)(0.15, 0.4), lift = (*u)(-0.05, 0.05);
+    return [&options, u, points, speed, lift](int frame, Pose3* truth) {
       const double angle = speed * frame / 30.0;  // an orbit of radius 1 m about the object
-      truths.emplace_back(Eigen::Quaterniond(Eigen::AngleAxisd(-angle, Eigen::Vector3d::UnitY())),
-                          Eigen::Vector3d(std::sin(angle), lift * angle, 1.0 - std::cos(angle)));
-      SortedFeatures view = Project(options.camera, truths.back(), points, 0.5, &u);
+      *truth = Pose3(Eigen::Quaterniond(Eigen::AngleAxisd(-angle, Eigen::Vector3d::UnitY())),
+                     Eigen::Vector3d(std::sin(angle), lift * angle, 1.0 - std::cos(angle)));
+      SortedFeatures view = Project(options.camera, *truth, points, 0.5, u);
       for (size_t i = 0; i < view.size(); ++i) {
-        if (u(0.0, 1.0) < 0.005) std::swap(view.uvs[i], view.uvs[(i * 7919) % view.size()]);
+        if ((*u)(0.0, 1.0) < 0.005) std::swap(view.uvs[i], view.uvs[(i * 7919) % view.size()]);
       }
-      map = init.Process(frame, frame / 30.0, view);
-    }
-    if (!map) continue;
-    ++made;
-    const Pose3 truth = truths[map->first.seq].Inverse() * truths[map->second.seq];
-    const MotionError e = ErrorOf(map->second.world_from_camera, truth);
-    worst.rotation_deg = std::max(worst.rotation_deg, e.rotation_deg);
-    worst.direction_deg = std::max(worst.direction_deg, e.direction_deg);
-  }
+      return view;
+    };
+  });
   std::printf("orbits: %d of 20 initialised, worst %.3f degrees of rotation, %.3f of direction\n",
-              made, worst.rotation_deg, worst.direction_deg);
-  EXPECT_GE(made, 15);
-  EXPECT_LT(worst.rotation_deg, 3.0 * gate.max_rotation_sigma_deg);
-  EXPECT_LT(worst.direction_deg, 3.0 * gate.max_direction_sigma_deg);
+              o.made, o.worst.rotation_deg, o.worst.direction_deg);
+  EXPECT_GE(o.made, 15);
+  EXPECT_LT(o.worst.rotation_deg, 3.0 * options.initializer.max_rotation_sigma_deg);
+  EXPECT_LT(o.worst.direction_deg, 3.0 * options.initializer.max_direction_sigma_deg);
+}
+
+// A drone flying level over a floor with a few low objects on it, looking ahead and down: the
+// views are nearly planar (the objects rise 5-40 cm off a floor 2-9 m ahead). The homography's
+// two decompositions fit about equally well for the first frames and are refused as ambiguous;
+// the essential matrix then picks the plane's twin in some flights, and that twin fits the
+// essential matrix's own RANSAC inliers better than the true motion does (cost 44 against 70 on
+// 200 points), so the twin check, which compares raw costs on those inliers, lets it through.
+std::vector<Eigen::Vector3d> FloorWithLowObjects(Uniform* u) {
+  std::vector<Eigen::Vector3d> points;  // world: x right, y down, z ahead; floor at y = 1.5
+  for (int i = 0; i < 500; ++i) points.emplace_back((*u)(-4, 4), 1.5, (*u)(1.5, 9));
+  for (int object = 0; object < 6; ++object) {
+    const Eigen::Vector3d base((*u)(-3, 3), 1.5, (*u)(2, 8));
+    const double height = (*u)(0.05, 0.4), width = (*u)(0.2, 0.6);
+    for (int i = 0; i < 25; ++i) {
+      points.push_back(base +
+                       Eigen::Vector3d((*u)(-width, width), -(*u)(0, height), (*u)(-width, width)));
+    }
+  }
+  return points;
+}
+
+// 0.5-1.5 m/s in a random heading, a slow yaw, 30 fps, 0.5 px noise; frames go through the
+// initialiser until it makes a map. Disabled: a known defect, the reproducer of issue 13's
+// initialisation on nearly planar views. Measured over 20 flights: 20 maps, the latest at
+// frame 26, two of them the plane's twin (12.7 and 17.5 degrees of rotation, 80 of direction
+// off). Comparing the twins after a two-view refinement on an even subset of all shared
+// features as well makes all 20 right (worst 0.28 and 5.0 degrees), but changes the corpus
+// runs both ways (design/two_view_initialisation.md, Limits).
+TEST(InitializerGeometry, DISABLED_DroneOverANearlyPlanarFloorInitialisesWithTheTrueMotion) {
+  Options options;
+  options.camera = Camera();
+  const SequenceOutcome o = RunSequences(options, 1700, [&](Uniform* u) -> FrameSource {
+    const std::vector<Eigen::Vector3d> points = FloorWithLowObjects(u);
+    const double speed = (*u)(0.5, 1.5), heading = (*u)(-0.6, 0.6), yaw_rate = (*u)(-0.1, 0.1);
+    return [&options, u, points, speed, heading, yaw_rate](int frame, Pose3* truth) {
+      const double t = frame / 30.0;
+      const Eigen::Quaterniond pitch(Eigen::AngleAxisd(-0.35, Eigen::Vector3d::UnitX()));
+      const Eigen::Quaterniond yaw(Eigen::AngleAxisd(yaw_rate * t, Eigen::Vector3d::UnitY()));
+      const Eigen::Vector3d direction(std::sin(heading), 0.02 * std::sin(3 * t), std::cos(heading));
+      *truth = Pose3(yaw * pitch, speed * t * direction);
+      return Project(options.camera, *truth, points, 0.5, u);
+    };
+  });
+  std::printf(
+      "flights: %d of 20 initialised, the latest at frame %d, worst %.3f degrees of "
+      "rotation, %.3f of direction\n",
+      o.made, o.latest, o.worst.rotation_deg, o.worst.direction_deg);
+  EXPECT_GE(o.made, 18);
+  EXPECT_LT(o.latest, 45);
+  EXPECT_LT(o.worst.rotation_deg, 3.0 * options.initializer.max_rotation_sigma_deg);
+  EXPECT_LT(o.worst.direction_deg, 3.0 * options.initializer.max_direction_sigma_deg);
 }
 
 // The motion's standard deviations against an independent computation: the full Jacobian of
