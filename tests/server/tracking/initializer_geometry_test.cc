@@ -352,8 +352,8 @@ std::vector<Eigen::Vector3d> FloorWithLowObjects(Uniform* u) {
 }
 
 // 0.5-1.5 m/s in a random heading, a slow yaw, 30 fps, 0.5 px noise; frames go through the
-// initialiser until it makes a map. Disabled: a known defect, the reproducer of issue 13's
-// initialisation on nearly planar views. Measured over 20 flights: 20 maps, the latest at
+// initialiser until it makes a map. Disabled: it reproduces a known defect of initialisation
+// on nearly planar views. Measured over 20 flights: 20 maps, the latest at
 // frame 26, two of them the plane's twin (12.7 and 17.5 degrees of rotation, 80 of direction
 // off). Comparing the twins after a two-view refinement on an even subset of all shared
 // features as well makes all 20 right (worst 0.28 and 5.0 degrees), but changes the corpus
