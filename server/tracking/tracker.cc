@@ -124,8 +124,10 @@ void Tracker::RecordMeasuredCentre(double timestamp, const Eigen::Vector3d& cent
   }
   const MeasuredCentre& oldest = measured_.front();
   // The speed stays that of the last window until a new one spans enough time.
-  if (timestamp - oldest.timestamp >= kSpeedWindowS)
-    measured_speed_ = (centre - oldest.centre).norm() / (timestamp - oldest.timestamp);
+  if (timestamp - oldest.timestamp >= kSpeedWindowS) {
+    measured_velocity_ = (centre - oldest.centre) / (timestamp - oldest.timestamp);
+    measured_speed_ = measured_velocity_.norm();
+  }
 }
 
 void Tracker::StartLost() {
@@ -144,6 +146,7 @@ void Tracker::Reset() {
   reference_points_ = 0;
   measured_.clear();
   measured_speed_ = 0.0;
+  measured_velocity_.setZero();
 }
 
 void Tracker::Associate(const SortedFeatures& features, Association* a) const {

@@ -7,8 +7,9 @@
 // constrained one that fits still becomes an observation of the next keyframe and gains its
 // baseline. When too few map points remain in view and the camera has only turned since the
 // reference keyframe (a head looking around while standing still: new features have no parallax, so
-// the map cannot grow), the pose is the keyframe's centre with the rotation fitted to the bearings
-// the two share by id (tracking/rotation_only.h).
+// the map cannot grow), the pose's rotation is fitted to the bearings the frame shares with the
+// keyframe by id (tracking/rotation_only.h) and its centre is the last measured one, or that one
+// carried on at the measured velocity where the few map points in view say so.
 //
 // Relocalisation's PnP runs behind an OpenCV boundary: an exception OpenCV throws (degenerate
 // input) is a failed relocalisation, and the frame is lost; Track() never throws it.
@@ -125,14 +126,17 @@ class Tracker {
   bool TrackWithModel(const Association& a, Pose3* camera_from_world, std::vector<bool>* inlier);
   bool Relocalise(const Association& a, Pose3* camera_from_world, std::vector<bool>* inlier);
   // Pure rotation since the reference keyframe (tracking/rotation_only.h), tried when the map
-  // points in view are too few. The pose keeps the keyframe's centre, so it is refused once
-  // the camera may be further from it than kRotationOnlyMaxShift of the keyframe's median depth
-  // (the last measured centre's distance from it, plus the last measured speed times the time
-  // since): a rotation fit of a translating camera would freeze it in place. Sets `*keyframe`
-  // when the frame shares less than half of the keyframe's features.
+  // points in view are too few. The rotation is fitted as if the camera had kept the
+  // keyframe's centre, so it is refused once the camera may be further from it than
+  // kRotationOnlyMaxShift of the keyframe's median depth (the last measured centre's distance
+  // from it, plus the last measured speed times the time since). The pose's centre is the
+  // last measured one (a head turning in place) or that one moved on at the last measured
+  // velocity (a drone yawing in flight), whichever the map points in view fit better; without
+  // any, the last measured one. Sets `*keyframe` when the frame shares less than half of the
+  // keyframe's features.
   bool TrackRotationOnly(double timestamp, const SortedFeatures& features, const Association& a,
                          Pose3* camera_from_world, std::vector<bool>* inlier, bool* keyframe);
-  // Adds a measured camera centre and updates measured_speed_.
+  // Adds a measured camera centre and updates measured_speed_ and measured_velocity_.
   void RecordMeasuredCentre(double timestamp, const Eigen::Vector3d& centre);
   // Whether the inliers determine the pose's centre (its standard deviation for pixel_sigma
   // noise within kMaxCentreSigmaFraction of their median depth; tracker_internal.h).
@@ -178,6 +182,7 @@ class Tracker {
   };
   std::deque<MeasuredCentre> measured_;
   double measured_speed_ = 0.0;  // m/s, 0 while not known
+  Eigen::Vector3d measured_velocity_ = Eigen::Vector3d::Zero();  // m/s, its direction too
   bool measured_gap_ = false;    // rotation-only frames since the last measured one
   // The reference keyframe's features, for rotation-only tracking while it waits for mapping.
   SortedFeatures reference_features_;

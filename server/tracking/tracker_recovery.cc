@@ -108,8 +108,9 @@ bool Tracker::TrackRotationOnly(double timestamp, const SortedFeatures& features
                                 std::vector<bool>* inlier, bool* keyframe) {
   if (!reference_kf_ || !a.reference_pose) return false;
   const double max_error_px = std::sqrt(kChi2TwoDof95) * model_.pixel_sigma;
-  // The pose keeps the reference keyframe's centre: off by how far the last measured pose was
-  // from it, and by how far the camera has moved since, at its last measured speed.
+  // The rotation is fitted as if the camera were at the reference keyframe's centre: off by how
+  // far the last measured pose was from it, and by how far the camera has moved since, at its
+  // last measured speed.
   if (measured_.empty()) return false;
   const double since = std::max(0.0, timestamp - measured_.back().timestamp);
   const double moved =
@@ -128,6 +129,19 @@ bool Tracker::TrackRotationOnly(double timestamp, const SortedFeatures& features
       r->inliers < kSparseViewInlierFraction * static_cast<double>(r->shared)) {
     return false;
   }
+  *keyframe = r->inliers < kRotationKeyframeOverlap * static_cast<double>(keyframe_features);
+  // The bearings fit the rotation, not the centre. Two hypotheses for it: the camera stopped
+  // where it was last measured and only turns (a head looking around), or it moved on at the
+  // measured velocity (a drone yawing in flight). The map points in view, however few, decide;
+  // without any, the camera is taken to have stopped (a head's turns end its steps).
+  const Eigen::Matrix3d rotation = r->camera_from_world.RotationMatrix();
+  auto at = [&](const Eigen::Vector3d& centre) { return Pose3(rotation, -(rotation * centre)); };
+  const Pose3 stopped = at(measured_.back().centre);
+  const Pose3 moved_on = at(measured_.back().centre + measured_velocity_ * since);
+  int unused = 0;
+  r->camera_from_world =
+      RecentPointsCost(a, moved_on, &unused) < RecentPointsCost(a, stopped, &unused) ? moved_on
+                                                                                     : stopped;
   // The map points in view must agree with the rotation, when there are enough to judge (a
   // handful of fresh, noisy points does not outvote a thousand bearings).
   const int fitting = Classify(a, r->camera_from_world, /*skip_dormant=*/false, inlier);
@@ -136,7 +150,6 @@ bool Tracker::TrackRotationOnly(double timestamp, const SortedFeatures& features
     return false;
   }
   *camera_from_world = r->camera_from_world;
-  *keyframe = r->inliers < kRotationKeyframeOverlap * static_cast<double>(keyframe_features);
   return true;
 }
 

@@ -2,6 +2,7 @@
 // on a room furnished with meshes of assimp-testmodels (tests/data/scenes/testmodels.json), for
 // head, hand-held and drone motion. Bounds are set from measured runs (Release, 4 s at 30 fps,
 // deterministic); cases that fail today carry DISABLED_ and the measured failure.
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -103,14 +104,15 @@ class SceneRunTest : public testing::Test {
     double max_ate_max_m;
   };
 
-  // Runs 4 s of `motion` at 30 fps on the testmodels room and checks the bounds.
-  static void Run(const std::string& motion, bool noisy, bool occlusion, const Bounds& bounds) {
+  // Runs `duration_s` of `motion` at 30 fps on the testmodels room and checks the bounds.
+  static void Run(const std::string& motion, bool noisy, bool occlusion, const Bounds& bounds,
+                  double duration_s = kDurationS) {
     if (!HaveTestModels()) GTEST_SKIP() << "assimp-testmodels not installed";
     Expected<std::vector<SceneSpec>> specs = ReadSceneManifest(kManifest);
     ASSERT_TRUE(specs.ok()) << specs.error();
     Expected<ComposedScene> composed = ComposeScene(specs->front(), kMeshRoot);
     ASSERT_TRUE(composed.ok()) << composed.error();
-    Expected<Trajectory> trajectory = MakeMotion(motion, *composed, /*seed=*/1, kDurationS);
+    Expected<Trajectory> trajectory = MakeMotion(motion, *composed, /*seed=*/1, duration_s);
     ASSERT_TRUE(trajectory.ok()) << trajectory.error();
     RunConfig config;
     config.fps = 30.0;
@@ -122,7 +124,7 @@ class SceneRunTest : public testing::Test {
     std::printf("%s: init %d, untracked %d, ATE RMSE %.4f mm, max %.4f mm, %d keyframes\n",
                 motion.c_str(), m->init_frames, m->untracked, m->ate_rmse_m * 1e3,
                 m->ate_max_m * 1e3, m->keyframes);
-    EXPECT_EQ(m->frames, 121);
+    EXPECT_EQ(m->frames, static_cast<int>(std::lround(duration_s * 30.0)) + 1);
     EXPECT_GT(m->median_visible, 500.0);
     EXPECT_LE(m->init_frames, bounds.max_init_frames);
     EXPECT_LE(m->untracked, bounds.max_lost);
@@ -147,6 +149,14 @@ TEST_F(SceneRunTest, HandheldNoiseFree) {
 }
 
 TEST_F(SceneRunTest, DroneNoiseFree) { Run("drone", false, false, {0, 0, kExactAteM, kExactAteM}); }
+
+// The 20 s flight yaws from the dense models onto the bare walls at 0.25 m/s (frames 63-64):
+// rotation-only poses, whose centre the one map point in view places moving on at the measured
+// velocity. Measured: ATE RMSE 0.141 mm, max 3.1 mm (the frames held where the camera was last
+// at the reference keyframe's centre: 0.745 / 16.3 mm).
+TEST_F(SceneRunTest, DroneNoiseFreeYawingOntoBareWalls) {
+  Run("drone", false, false, {0, 0, 0.0003, 0.005}, /*duration_s=*/20.0);
+}
 
 // Noisy features (0.5 px, 1% wrong ids): measured ATE RMSE 0.56 mm, max 1.7 mm, none lost.
 TEST_F(SceneRunTest, HandheldNoisy) { Run("handheld", true, false, {0, 0, 0.004, 0.025}); }
