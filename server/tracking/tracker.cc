@@ -113,7 +113,7 @@ void Tracker::Start(KeyframeId keyframe, const Pose3& world_from_camera, int num
   last_keyframe_time_ = timestamp;
   last_keyframe_median_depth_ = median_depth;
   measured_.clear();
-  measured_speed_ = 0.0;
+  measured_velocity_.setZero();
   RecordMeasuredCentre(timestamp, world_from_camera.translation());
 }
 
@@ -124,10 +124,8 @@ void Tracker::RecordMeasuredCentre(double timestamp, const Eigen::Vector3d& cent
   }
   const MeasuredCentre& oldest = measured_.front();
   // The speed stays that of the last window until a new one spans enough time.
-  if (timestamp - oldest.timestamp >= kSpeedWindowS) {
+  if (timestamp - oldest.timestamp >= kSpeedWindowS)
     measured_velocity_ = (centre - oldest.centre) / (timestamp - oldest.timestamp);
-    measured_speed_ = measured_velocity_.norm();
-  }
 }
 
 void Tracker::StartLost() {
@@ -145,7 +143,6 @@ void Tracker::Reset() {
   reference_features_ = SortedFeatures();
   reference_points_ = 0;
   measured_.clear();
-  measured_speed_ = 0.0;
   measured_velocity_.setZero();
 }
 
@@ -331,7 +328,8 @@ TrackerOutput Tracker::Track(int64_t seq, double timestamp, const SortedFeatures
         correction.new_from_old.TransformPose(reference_world_from_camera_);
     last_keyframe_median_depth_ *= correction.new_from_old.scale();
     for (MeasuredCentre& m : measured_) m.centre = correction.new_from_old * m.centre;
-    measured_speed_ *= correction.new_from_old.scale();
+    measured_velocity_ =
+        correction.new_from_old.scale() * (correction.new_from_old.rotation() * measured_velocity_);
   }
 
   Association a;

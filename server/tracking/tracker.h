@@ -136,7 +136,7 @@ class Tracker {
   // keyframe's features.
   bool TrackRotationOnly(double timestamp, const SortedFeatures& features, const Association& a,
                          Pose3* camera_from_world, std::vector<bool>* inlier, bool* keyframe);
-  // Adds a measured camera centre and updates measured_speed_ and measured_velocity_.
+  // Adds a measured camera centre and updates measured_velocity_.
   void RecordMeasuredCentre(double timestamp, const Eigen::Vector3d& centre);
   // Whether the inliers determine the pose's centre (its standard deviation for pixel_sigma
   // noise within kMaxCentreSigmaFraction of their median depth; tracker_internal.h).
@@ -181,9 +181,8 @@ class Tracker {
     Eigen::Vector3d centre;
   };
   std::deque<MeasuredCentre> measured_;
-  double measured_speed_ = 0.0;  // m/s, 0 while not known
-  Eigen::Vector3d measured_velocity_ = Eigen::Vector3d::Zero();  // m/s, its direction too
-  bool measured_gap_ = false;    // rotation-only frames since the last measured one
+  Eigen::Vector3d measured_velocity_ = Eigen::Vector3d::Zero();  // m/s, 0 while not known
+  bool measured_gap_ = false;  // rotation-only frames since the last measured one
   // The reference keyframe's features, for rotation-only tracking while it waits for mapping.
   SortedFeatures reference_features_;
   // Consecutive tracked frames in which each associated map point was a pose outlier.

@@ -113,8 +113,8 @@ bool Tracker::TrackRotationOnly(double timestamp, const SortedFeatures& features
   // last measured speed.
   if (measured_.empty()) return false;
   const double since = std::max(0.0, timestamp - measured_.back().timestamp);
-  const double moved =
-      (measured_.back().centre - a.reference_pose->translation()).norm() + measured_speed_ * since;
+  const double moved = (measured_.back().centre - a.reference_pose->translation()).norm() +
+                       measured_velocity_.norm() * since;
   if (moved > kRotationOnlyMaxShift * last_keyframe_median_depth_) return false;
   std::optional<RotationOnlyPose> r;
   size_t keyframe_features = 0;

@@ -152,8 +152,8 @@ TEST_F(SceneRunTest, DroneNoiseFree) { Run("drone", false, false, {0, 0, kExactA
 
 // The 20 s flight yaws from the dense models onto the bare walls at 0.25 m/s (frames 63-64):
 // rotation-only poses, whose centre the one map point in view places moving on at the measured
-// velocity. Measured: ATE RMSE 0.141 mm, max 3.1 mm (the frames held where the camera was last
-// at the reference keyframe's centre: 0.745 / 16.3 mm).
+// velocity. Measured: ATE RMSE 0.141 mm, max 3.1 mm (with those frames held at the reference
+// keyframe's centre: 0.745 / 16.3 mm).
 TEST_F(SceneRunTest, DroneNoiseFreeYawingOntoBareWalls) {
   Run("drone", false, false, {0, 0, 0.0003, 0.005}, /*duration_s=*/20.0);
 }
