@@ -59,6 +59,20 @@ constexpr double kMergeImageErrorSigmas = 3.0;
 constexpr double kMergeMinImageAgreement = 0.25;
 // How two maps of a system or a group are aligned for a merge (multi_map options, the camera).
 MapAlignmentOptions MergeAlignmentOptions(const Options& options);
+// SmoothLooseFrames: anchors at most this far apart in time count as consecutive; a loosely
+// determined frame is smoothed between anchors at most kSmoothingMaxSpanS apart, with the
+// deviation of at least kSmoothingMinSamples anchors within kSmoothingWindowS of it.
+constexpr double kSmoothingConsecutiveS = 0.1;
+// ... Loosely determined: the centre's standard deviation above this fraction of the median
+// depth (the worst frames of the scene-diversity runs are all above it,
+// docs/design/dense_objects.md).
+constexpr double kLooseCentreSigmaFraction = 0.01;
+constexpr double kSmoothingMaxSpanS = 1.0;
+constexpr double kSmoothingWindowS = 1.0;
+constexpr int kSmoothingMinSamples = 5;
+// ... A frame whose squared reprojection errors average below this fraction of the model's
+// (2 per point, 6 for the pose) is exact data: its points' centre stands.
+constexpr double kExactDataVarianceFactor = 0.01;
 // System::RefineMap: iterations of the global bundle adjustment over every keyframe and point.
 constexpr int kFinalBaIterations = 20;
 
@@ -128,5 +142,17 @@ bool RefineFramePose(const MeasurementModel& model, const MapData& map, Trajecto
 // pose.
 int SolveUnposedFrames(const MeasurementModel& model, const MapData& map, int map_id,
                        int min_points, std::vector<TrajectoryRecord>* records);
+
+// Smooths, on `map` (the map `map_id`, after RefineMap's re-solves), the frames whose points
+// leave the centre loosely determined (its standard deviation for pixel_sigma noise above
+// kLooseCentreSigmaFraction of their median depth): the centre the points
+// give is fused, by their covariance, with the one interpolated in time between the nearest
+// well-determined frames (or keyframes) on either side, whose deviation is that of anchors
+// from their neighbours' interpolation within kSmoothingWindowS, grown with the span; the
+// rotation is refitted to the frame's bearings from the fused centre. `max_points`: the
+// tracker's (dense views are judged on an even subset, its information scaled up). Returns
+// how many frames it moved.
+int SmoothLooseFrames(const MeasurementModel& model, const MapData& map, int map_id, int max_points,
+                      std::vector<TrajectoryRecord>* records);
 
 }  // namespace m2s::slam

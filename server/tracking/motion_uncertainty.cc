@@ -1,9 +1,12 @@
 #include "tracking/motion_uncertainty.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
+
+#include "m2s/common/numeric.h"
 
 namespace m2s::slam {
 
@@ -67,8 +70,9 @@ std::optional<MotionUncertainty> TwoViewMotionUncertainty(
   return out;
 }
 
-double PoseCentreSigma(const Camera& camera, double pixel_sigma, const Pose3& camera_from_world,
-                       const std::vector<Eigen::Vector3d>& points_world) {
+std::optional<Eigen::Matrix3d> PoseCentreCovariance(
+    const Camera& camera, double pixel_sigma, const Pose3& camera_from_world,
+    const std::vector<Eigen::Vector3d>& points_world) {
   // x_c = R (X - C): d x_c / d theta = -[x_c]x (rotation perturbed on the left), d x_c / d C = -R.
   const Eigen::Matrix3d r = camera_from_world.RotationMatrix();
   Eigen::Matrix<double, 6, 6> information = Eigen::Matrix<double, 6, 6>::Zero();
@@ -82,21 +86,54 @@ double PoseCentreSigma(const Camera& camera, double pixel_sigma, const Pose3& ca
     information += j.transpose() * j;
     ++used;
   }
-  if (used < 3 || !(pixel_sigma > 0.0)) return INFINITY;
+  if (used < 3 || !(pixel_sigma > 0.0)) return std::nullopt;
   information /= pixel_sigma * pixel_sigma;
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>> eig(information);
   // Rank-deficient (within rounding): some direction of the pose is not observed.
   if (eig.info() != Eigen::Success ||
       !(eig.eigenvalues().minCoeff() > 1e-12 * eig.eigenvalues().maxCoeff())) {
-    return INFINITY;
+    return std::nullopt;
   }
   const Eigen::Matrix<double, 6, 6> covariance = eig.eigenvectors() *
                                                  eig.eigenvalues().cwiseInverse().asDiagonal() *
                                                  eig.eigenvectors().transpose();
+  return Eigen::Matrix3d(covariance.bottomRightCorner<3, 3>());
+}
+
+namespace {
+
+double LargestSigma(const Eigen::Matrix3d& covariance) {
+  return std::sqrt(std::max(
+      0.0, Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(covariance).eigenvalues().maxCoeff()));
+}
+
+}  // namespace
+
+std::optional<ViewCentreUncertainty> CentreUncertaintyOfView(
+    const Camera& camera, double pixel_sigma, const Pose3& camera_from_world,
+    const std::vector<Eigen::Vector3d>& points_world, int max_points) {
+  if (points_world.empty()) return std::nullopt;
+  const std::vector<size_t> subset =
+      EvenlySpacedIndices(points_world.size(), static_cast<size_t>(std::max(max_points, 1)));
+  std::vector<Eigen::Vector3d> points;
+  points.reserve(subset.size());
+  for (const size_t k : subset) points.push_back(points_world[k]);
+  const double noise = pixel_sigma * std::sqrt(static_cast<double>(subset.size()) /
+                                               static_cast<double>(points_world.size()));
+  const std::optional<Eigen::Matrix3d> covariance =
+      PoseCentreCovariance(camera, noise, camera_from_world, points);
+  if (!covariance) return std::nullopt;
+  return ViewCentreUncertainty{*covariance, LargestSigma(*covariance),
+                               MedianDepth(camera_from_world, points)};
+}
+
+double PoseCentreSigma(const Camera& camera, double pixel_sigma, const Pose3& camera_from_world,
+                       const std::vector<Eigen::Vector3d>& points_world) {
+  const std::optional<Eigen::Matrix3d> covariance =
+      PoseCentreCovariance(camera, pixel_sigma, camera_from_world, points_world);
+  if (!covariance) return INFINITY;
   return std::sqrt(
-      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(covariance.bottomRightCorner<3, 3>())
-          .eigenvalues()
-          .maxCoeff());
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(*covariance).eigenvalues().maxCoeff());
 }
 
 }  // namespace m2s::slam

@@ -28,10 +28,29 @@ std::optional<MotionUncertainty> TwoViewMotionUncertainty(
     const Camera& camera, double pixel_sigma, const Pose3& camera1_from_camera0,
     const std::vector<Eigen::Vector3d>& points_camera0);
 
-// Largest standard deviation (world units) of a camera's centre solved from known points, its
-// rotation unknown too, for image noise `pixel_sigma` on their projections: the position block
-// of the inverse of the pose's Fisher information. Infinity when the points leave the pose
-// undetermined (fewer than 3 in front of the camera, or all on one ray).
+// Covariance (world units squared) of a camera's centre solved from known points, its rotation
+// unknown too, for image noise `pixel_sigma` on their projections: the position block of the
+// inverse of the pose's Fisher information. nullopt when the points leave the pose undetermined
+// (fewer than 3 in front of the camera, or all on one ray).
+std::optional<Eigen::Matrix3d> PoseCentreCovariance(
+    const Camera& camera, double pixel_sigma, const Pose3& camera_from_world,
+    const std::vector<Eigen::Vector3d>& points_world);
+
+// A view's centre uncertainty, on an even subset of at most `max_points` of the points (dense
+// views), its information scaled up to the whole (as if its noise were that much smaller):
+// the covariance, its largest standard deviation, and the subset's median depth. nullopt when
+// the points leave the pose undetermined.
+struct ViewCentreUncertainty {
+  Eigen::Matrix3d covariance;
+  double sigma = 0.0;
+  double median_depth = 0.0;
+};
+std::optional<ViewCentreUncertainty> CentreUncertaintyOfView(
+    const Camera& camera, double pixel_sigma, const Pose3& camera_from_world,
+    const std::vector<Eigen::Vector3d>& points_world, int max_points);
+
+// Largest standard deviation (world units) of that centre (the square root of the covariance's
+// largest eigenvalue); infinity where the covariance is nullopt.
 double PoseCentreSigma(const Camera& camera, double pixel_sigma, const Pose3& camera_from_world,
                        const std::vector<Eigen::Vector3d>& points_world);
 

@@ -80,4 +80,23 @@ std::optional<RotationOnlyPose> SolveRotationOnly(const Camera& camera, double m
                           static_cast<int>(n), static_cast<int>(best.size())};
 }
 
+std::optional<Pose3> PoseAtCentre(const Camera& camera, const Eigen::Vector3d& centre,
+                                  const std::vector<Eigen::Vector3d>& points_world,
+                                  const std::vector<Eigen::Vector2d>& uvs) {
+  std::vector<Eigen::Vector3d> from, to;
+  std::vector<size_t> use;
+  for (size_t i = 0; i < points_world.size() && i < uvs.size(); ++i) {
+    const Eigen::Vector3d d = points_world[i] - centre;
+    if (!(d.norm() > 0.0)) continue;
+    use.push_back(from.size());
+    from.push_back(d.normalized());
+    to.push_back(camera.Unproject(uvs[i], 1.0).normalized());
+  }
+  bool spread = false;
+  for (size_t i = 1; i < from.size() && !spread; ++i) spread = from[0].cross(from[i]).norm() > 1e-9;
+  if (!spread) return std::nullopt;
+  const Eigen::Matrix3d r = FitRotation(from, to, use);
+  return Pose3(r, -(r * centre));
+}
+
 }  // namespace m2s::slam

@@ -41,4 +41,11 @@ std::optional<RotationOnlyPose> SolveRotationOnly(const Camera& camera, double m
                                                   const std::vector<Eigen::Vector2d>& keyframe_uvs,
                                                   const SortedFeatures& features);
 
+// The pose of a camera at `centre` whose rotation best maps the directions from there to
+// `points_world` onto the bearings of their projections `uvs` (the same closed form). At least
+// 2 points not on one ray; nullopt otherwise.
+std::optional<Pose3> PoseAtCentre(const Camera& camera, const Eigen::Vector3d& centre,
+                                  const std::vector<Eigen::Vector3d>& points_world,
+                                  const std::vector<Eigen::Vector2d>& uvs);
+
 }  // namespace m2s::slam

@@ -160,17 +160,14 @@ bool Tracker::PoseDetermined(const Association& a, const std::vector<bool>& inli
     if (inlier[i]) used.push_back(i);
   }
   if (used.empty()) return false;
-  // Dense views: an even subset, its information scaled up to the whole (as if its noise were
-  // that much smaller). The points' own uncertainty is left out: shared by the points of one
-  // map, it moves the pose with them, and young maps would lose every frame.
-  const std::vector<size_t> subset =
-      EvenlySpacedIndices(used.size(), static_cast<size_t>(options_.max_points));
+  // Dense views: an even subset, its information scaled up to the whole. The points' own
+  // uncertainty is left out: shared by the points of one map, it moves the pose with them, and
+  // young maps would lose every frame.
   std::vector<Eigen::Vector3d> points;
-  for (const size_t k : subset) points.push_back(a.points[used[k]]);
-  const double noise = model_.pixel_sigma * std::sqrt(static_cast<double>(subset.size()) /
-                                                      static_cast<double>(used.size()));
-  const double sigma = PoseCentreSigma(model_.camera, noise, camera_from_world, points);
-  return sigma <= kMaxCentreSigmaFraction * MedianDepth(camera_from_world, points);
+  for (const size_t i : used) points.push_back(a.points[i]);
+  const std::optional<ViewCentreUncertainty> u = CentreUncertaintyOfView(
+      model_.camera, model_.pixel_sigma, camera_from_world, points, options_.max_points);
+  return u && u->sigma <= kMaxCentreSigmaFraction * u->median_depth;
 }
 
 int Tracker::RequiredInliers(int num_points, int floor) const {

@@ -189,5 +189,32 @@ TEST(PureRotation, SolveRotationOnlyRecoversATurnAndRefusesAMove) {
   EXPECT_LT(m->inliers, m->shared / 2);
 }
 
+TEST(PureRotation, PoseAtCentreRecoversTheRotationOfAKnownCentre) {
+  // A camera at a known centre, turned 30 degrees about a tilted axis, sees points 1-3 m away;
+  // given that centre, the rotation is the one that maps their directions onto its bearings.
+  const Camera camera;
+  const Eigen::Vector3d centre(0.4, -0.2, 1.5);
+  const Eigen::Matrix3d rotation =
+      Eigen::AngleAxisd(M_PI / 6.0, Eigen::Vector3d(0.2, 1.0, -0.3).normalized())
+          .toRotationMatrix();
+  const Pose3 camera_from_world(rotation, -(rotation * centre));
+  std::vector<Eigen::Vector3d> points;
+  std::vector<Eigen::Vector2d> uvs;
+  for (int i = 0; i < 40; ++i) {
+    const Eigen::Vector3d in_camera(0.6 * std::sin(1.7 * i), 0.4 * std::cos(2.3 * i),
+                                    1.0 + 0.05 * i);
+    points.push_back(camera_from_world.Inverse() * in_camera);
+    uvs.push_back(camera.Project(in_camera));
+  }
+  const std::optional<Pose3> pose = PoseAtCentre(camera, centre, points, uvs);
+  ASSERT_TRUE(pose.has_value());
+  EXPECT_LT(AngleDeg(pose->rotation(), camera_from_world.rotation()), 1e-9);
+  EXPECT_LT((pose->Inverse().translation() - centre).norm(), 1e-12);
+  // Every point on one ray from the centre: no rotation about it is determined.
+  const std::vector<Eigen::Vector3d> on_ray = {centre + Eigen::Vector3d(0, 1, 0),
+                                               centre + Eigen::Vector3d(0, 2, 0)};
+  EXPECT_FALSE(PoseAtCentre(camera, centre, on_ray, {uvs[0], uvs[1]}).has_value());
+}
+
 }  // namespace
 }  // namespace m2s::slam
