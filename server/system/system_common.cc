@@ -263,34 +263,44 @@ int SolveUnposedFrames(const MeasurementModel& model, const MapData& map, int ma
   return solved;
 }
 
-int SmoothLooseFrames(const MeasurementModel& model, const MapData& map, int map_id, int max_points,
-                      std::vector<TrajectoryRecord>* records) {
-  std::vector<TrajectoryRecord>& r = *records;
-  // The frames of the map with a pose: centre, whether it is an anchor (a keyframe, or a frame
-  // whose points determine its centre), and for a loosely determined one what fusing needs.
-  struct Frame {
-    size_t index = 0;
-    double t = 0.0;
-    Pose3 world_from_camera;
-    bool anchor = false;
-    bool loose = false;
-    Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
-    std::vector<Eigen::Vector3d> points;
-    std::vector<Eigen::Vector2d> uvs;
-  };
-  std::vector<Frame> frames;
+namespace {
+
+// SmoothLooseFrames: a frame of the map with a pose; an anchor is a keyframe without
+// observations or a frame whose points determine its centre; a loose frame carries what the
+// fusion needs.
+struct PosedFrame {
+  size_t index = 0;  // into the records
+  double t = 0.0;
+  Pose3 world_from_camera;
+  bool anchor = false;
+  bool loose = false;
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();  // of the points' centre
+  std::vector<Eigen::Vector3d> points;                   // observations fitting the pose
+  std::vector<Eigen::Vector2d> uvs;
+};
+
+Eigen::Vector3d Centre(const PosedFrame& f) { return f.world_from_camera.translation(); }
+
+// The centre at time `t` on the line through the centres of `a` and `c` (linear in time).
+Eigen::Vector3d CentreAt(const PosedFrame& a, const PosedFrame& c, double t) {
+  return Centre(a) + (Centre(c) - Centre(a)) * ((t - a.t) / (c.t - a.t));
+}
+
+// The frames of map `map_id` with a pose, in the records' order, classified. Rotation-only
+// frames (no observations, their centre not measured) are left out.
+std::vector<PosedFrame> PosedFrames(const MeasurementModel& model, const MapData& map, int map_id,
+                                    int max_points, const std::vector<TrajectoryRecord>& r) {
+  std::vector<PosedFrame> frames;
   for (size_t i = 0; i < r.size(); ++i) {
     if (!HasPose(r[i].state) || r[i].map_id != map_id || !r[i].reference) continue;
     const std::optional<Pose3> reference = map.ResolveKeyframePose(*r[i].reference);
     if (!reference) continue;
-    Frame f;
+    PosedFrame f;
     f.index = i;
     f.t = r[i].timestamp;
     f.world_from_camera = *reference * r[i].reference_from_camera;
     if (r[i].observed_ids.empty()) {
-      // A keyframe without observations (the initial map's) is an anchor; a rotation-only
-      // frame is neither, its centre is not measured.
-      if (r[i].is_keyframe) {
+      if (r[i].is_keyframe) {  // the initial map's keyframes
         f.anchor = true;
         frames.push_back(std::move(f));
       }
@@ -302,44 +312,93 @@ int SmoothLooseFrames(const MeasurementModel& model, const MapData& map, int map
     std::vector<Eigen::Vector2d> uvs;
     MappedObservations(map, r[i], &points, &uvs);
     const double max_err_sq = kChi2TwoDof95 * model.pixel_sigma * model.pixel_sigma;
+    double squared_error = 0.0;
     for (size_t k = 0; k < points.size(); ++k) {
       const Eigen::Vector3d pc = camera_from_world * points[k];
-      if (pc.z() > 0.0 && (model.camera.Project(pc) - uvs[k]).squaredNorm() <= max_err_sq) {
-        f.points.push_back(points[k]);
-        f.uvs.push_back(uvs[k]);
-      }
+      if (!(pc.z() > 0.0)) continue;
+      const double err_sq = (model.camera.Project(pc) - uvs[k]).squaredNorm();
+      if (err_sq > max_err_sq) continue;
+      f.points.push_back(points[k]);
+      f.uvs.push_back(uvs[k]);
+      squared_error += err_sq;
     }
     if (f.points.size() < static_cast<size_t>(tracker_internal::kMinTrackedInliers)) continue;
     const std::optional<ViewCentreUncertainty> u = CentreUncertaintyOfView(
         model.camera, model.pixel_sigma, camera_from_world, f.points, max_points);
     if (!u) continue;
-    f.loose = u->sigma > kLooseCentreSigmaFraction * u->median_depth;
-    // Exact data (the residuals far below the model's noise): the points' centre is exact.
-    double squared_error = 0.0;
-    for (size_t k = 0; k < f.points.size(); ++k) {
-      squared_error +=
-          (model.camera.Project(camera_from_world * f.points[k]) - f.uvs[k]).squaredNorm();
-    }
+    // Exact data (the residuals far below the model's noise): the points' centre stands.
     const double variance_factor =
         squared_error / (model.pixel_sigma * model.pixel_sigma *
                          std::max(1.0, 2.0 * static_cast<double>(f.points.size()) - 6.0));
-    if (variance_factor < kExactDataVarianceFactor) f.loose = false;
+    f.loose = u->sigma > kLooseCentreSigmaFraction * u->median_depth &&
+              variance_factor >= kExactDataVarianceFactor;
     f.anchor = !f.loose;
     f.covariance = u->covariance;
     frames.push_back(std::move(f));
   }
-  auto centre = [&](const Frame& f) { return f.world_from_camera.translation(); };
-  auto interpolated = [&](const Frame& a, const Frame& c, double t) {
-    return Eigen::Vector3d(centre(a) + (centre(c) - centre(a)) * ((t - a.t) / (c.t - a.t)));
+  return frames;
+}
+
+// The centre of frames[k] from the anchors around it: interpolated between the nearest one on
+// either side (each within kSmoothingMaxSpanS), or, at the end of a stretch, extrapolated
+// from the two nearest on one side (consecutive). With it, how many times the deviation of an
+// interpolation over consecutive frames its own deviation is: half the span in frames when
+// interpolated, twice the distance in frames when extrapolated. nullopt without anchors.
+std::optional<std::pair<Eigen::Vector3d, double>> CentreFromAnchors(
+    const std::vector<PosedFrame>& frames, size_t k, double interval) {
+  const PosedFrame& f = frames[k];
+  size_t before = k, after = k;  // the stretch of frames without an anchor around k
+  while (before > 0 && !frames[before - 1].anchor) --before;
+  while (after + 1 < frames.size() && !frames[after + 1].anchor) ++after;
+  const bool has_before = before >= 1 && f.t - frames[before - 1].t <= kSmoothingMaxSpanS;
+  const bool has_after =
+      after + 1 < frames.size() && frames[after + 1].t - f.t <= kSmoothingMaxSpanS;
+  if (has_before && has_after) {
+    const PosedFrame &a = frames[before - 1], &c = frames[after + 1];
+    return std::pair{CentreAt(a, c, f.t), std::max(1.0, 0.5 * (c.t - a.t) / interval)};
+  }
+  // The nearest anchor before (after) frames[i], consecutive to it.
+  auto previous_anchor = [&](size_t i) -> std::optional<size_t> {
+    for (size_t j = i; j-- > 0 && frames[i].t - frames[j].t <= kSmoothingConsecutiveS;) {
+      if (frames[j].anchor) return j;
+    }
+    return std::nullopt;
   };
+  auto next_anchor = [&](size_t i) -> std::optional<size_t> {
+    for (size_t j = i + 1; j < frames.size() && frames[j].t - frames[i].t <= kSmoothingConsecutiveS;
+         ++j) {
+      if (frames[j].anchor) return j;
+    }
+    return std::nullopt;
+  };
+  if (has_before) {
+    const PosedFrame& b = frames[before - 1];
+    const std::optional<size_t> a = previous_anchor(before - 1);
+    if (!a) return std::nullopt;
+    return std::pair{CentreAt(frames[*a], b, f.t), 2.0 * std::max(1.0, (f.t - b.t) / interval)};
+  }
+  if (has_after) {
+    const PosedFrame& b = frames[after + 1];
+    const std::optional<size_t> c = next_anchor(after + 1);
+    if (!c) return std::nullopt;
+    return std::pair{CentreAt(b, frames[*c], f.t), 2.0 * std::max(1.0, (b.t - f.t) / interval)};
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
+int SmoothLooseFrames(const MeasurementModel& model, const MapData& map, int map_id, int max_points,
+                      std::vector<TrajectoryRecord>* records) {
+  const std::vector<PosedFrame> frames = PosedFrames(model, map, map_id, max_points, *records);
   // How far an anchor lies from the interpolation of the anchors on either side of it, over
-  // consecutive frames: the motion's smoothness at the map's scale, noise included.
+  // consecutive frames: the motion's smoothness at the map's scale, pose noise included.
   std::vector<std::pair<double, double>> deviation;  // (time, squared deviation)
   for (size_t k = 1; k + 1 < frames.size(); ++k) {
-    const Frame &a = frames[k - 1], &b = frames[k], &c = frames[k + 1];
+    const PosedFrame &a = frames[k - 1], &b = frames[k], &c = frames[k + 1];
     if (!a.anchor || !b.anchor || !c.anchor || !(c.t > a.t)) continue;
     if (c.t - a.t > kSmoothingConsecutiveS) continue;
-    deviation.emplace_back(b.t, (centre(b) - interpolated(a, c, b.t)).squaredNorm());
+    deviation.emplace_back(b.t, (Centre(b) - CentreAt(a, c, b.t)).squaredNorm());
   }
   // The frame interval: the median time between consecutive frames with a pose.
   std::vector<double> intervals;
@@ -349,50 +408,11 @@ int SmoothLooseFrames(const MeasurementModel& model, const MapData& map, int map
   if (intervals.empty()) return 0;
   std::nth_element(intervals.begin(), intervals.begin() + intervals.size() / 2, intervals.end());
   const double interval = intervals[intervals.size() / 2];
-  int fused = 0;
+  int smoothed = 0;
   for (size_t k = 0; k < frames.size(); ++k) {
-    Frame& f = frames[k];
+    const PosedFrame& f = frames[k];
     if (!f.loose) continue;
-    size_t before = k, after = k;
-    while (before > 0 && !frames[before - 1].anchor) --before;
-    while (after + 1 < frames.size() && !frames[after + 1].anchor) ++after;
-    // The anchors around the frame: one on either side (interpolated), or, at the end of a
-    // stretch, the two nearest on one side (extrapolated).
-    const bool has_before = before >= 1 && f.t - frames[before - 1].t <= kSmoothingMaxSpanS;
-    const bool has_after =
-        after + 1 < frames.size() && frames[after + 1].t - f.t <= kSmoothingMaxSpanS;
-    // The nearest anchor before (after) frames[i], within kSmoothingConsecutiveS of it.
-    auto previous_anchor = [&](size_t i) -> std::optional<size_t> {
-      for (size_t j = i; j-- > 0;) {
-        if (frames[i].t - frames[j].t > kSmoothingConsecutiveS) break;
-        if (frames[j].anchor) return j;
-      }
-      return std::nullopt;
-    };
-    auto next_anchor = [&](size_t i) -> std::optional<size_t> {
-      for (size_t j = i + 1; j < frames.size(); ++j) {
-        if (frames[j].t - frames[i].t > kSmoothingConsecutiveS) break;
-        if (frames[j].anchor) return j;
-      }
-      return std::nullopt;
-    };
-    std::optional<Eigen::Vector3d> prior;
-    double growth = 1.0;  // of the deviation: with the span, or the distance extrapolated
-    if (has_before && has_after) {
-      const Frame &a = frames[before - 1], &c = frames[after + 1];
-      prior = interpolated(a, c, f.t);
-      growth = std::max(1.0, 0.5 * (c.t - a.t) / interval);
-    } else if (has_before) {
-      if (const std::optional<size_t> j = previous_anchor(before - 1)) {
-        prior = interpolated(frames[*j], frames[before - 1], f.t);
-        growth = 2.0 * std::max(1.0, (f.t - frames[before - 1].t) / interval);
-      }
-    } else if (has_after) {
-      if (const std::optional<size_t> j = next_anchor(after + 1)) {
-        prior = interpolated(frames[after + 1], frames[*j], f.t);
-        growth = 2.0 * std::max(1.0, (frames[after + 1].t - f.t) / interval);
-      }
-    }
+    const auto prior = CentreFromAnchors(frames, k, interval);
     if (!prior) continue;
     double sum = 0.0;
     int n = 0;
@@ -403,23 +423,24 @@ int SmoothLooseFrames(const MeasurementModel& model, const MapData& map, int map
       }
     }
     if (n < kSmoothingMinSamples) continue;
-    const double sigma = std::sqrt(sum / n) * growth;
+    const double sigma = std::sqrt(sum / n) * prior->second;
+    // The two centres fused by their information.
     const Eigen::Matrix3d points_information = f.covariance.inverse();
     const Eigen::Matrix3d prior_information =
         Eigen::Matrix3d::Identity() / std::max(sigma * sigma, 1e-18);
-    const Eigen::Vector3d fused_centre =
+    const Eigen::Vector3d fused =
         (points_information + prior_information)
             .ldlt()
-            .solve(points_information * centre(f) + prior_information * *prior);
-    if (!fused_centre.allFinite()) continue;
-    const std::optional<Pose3> pose = PoseAtCentre(model.camera, fused_centre, f.points, f.uvs);
+            .solve(points_information * Centre(f) + prior_information * prior->first);
+    if (!fused.allFinite()) continue;
+    const std::optional<Pose3> pose = PoseAtCentre(model.camera, fused, f.points, f.uvs);
     if (!pose) continue;
-    TrajectoryRecord& record = r[f.index];
+    TrajectoryRecord& record = (*records)[f.index];
     const std::optional<Pose3> reference = map.ResolveKeyframePose(*record.reference);
     record.reference_from_camera = reference->Inverse() * pose->Inverse();
-    ++fused;
+    ++smoothed;
   }
-  return fused;
+  return smoothed;
 }
 
 }  // namespace m2s::slam

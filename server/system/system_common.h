@@ -59,20 +59,20 @@ constexpr double kMergeImageErrorSigmas = 3.0;
 constexpr double kMergeMinImageAgreement = 0.25;
 // How two maps of a system or a group are aligned for a merge (multi_map options, the camera).
 MapAlignmentOptions MergeAlignmentOptions(const Options& options);
-// SmoothLooseFrames: anchors at most this far apart in time count as consecutive; a loosely
-// determined frame is smoothed between anchors at most kSmoothingMaxSpanS apart, with the
-// deviation of at least kSmoothingMinSamples anchors within kSmoothingWindowS of it.
-constexpr double kSmoothingConsecutiveS = 0.1;
-// ... Loosely determined: the centre's standard deviation above this fraction of the median
-// depth (the worst frames of the scene-diversity runs are all above it,
-// docs/design/dense_objects.md).
+// SmoothLooseFrames: a frame is loosely determined when its centre's standard deviation is
+// above kLooseCentreSigmaFraction of its points' median depth (the worst frames of the
+// scene-diversity runs are all above it, docs/design/dense_objects.md), unless its squared
+// reprojection errors average below kExactDataVarianceFactor of the model's (2 per point, 6
+// for the pose: exact data, whose points' centre stands). Anchors at most
+// kSmoothingConsecutiveS apart count as consecutive; a frame is smoothed from anchors at most
+// kSmoothingMaxSpanS from it, with the deviation of at least kSmoothingMinSamples anchors
+// within kSmoothingWindowS of it.
 constexpr double kLooseCentreSigmaFraction = 0.01;
+constexpr double kExactDataVarianceFactor = 0.01;
+constexpr double kSmoothingConsecutiveS = 0.1;
 constexpr double kSmoothingMaxSpanS = 1.0;
 constexpr double kSmoothingWindowS = 1.0;
 constexpr int kSmoothingMinSamples = 5;
-// ... A frame whose squared reprojection errors average below this fraction of the model's
-// (2 per point, 6 for the pose) is exact data: its points' centre stands.
-constexpr double kExactDataVarianceFactor = 0.01;
 // System::RefineMap: iterations of the global bundle adjustment over every keyframe and point.
 constexpr int kFinalBaIterations = 20;
 
