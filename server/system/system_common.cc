@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numeric>
 #include <unordered_map>
 
 #include <Eigen/Cholesky>
@@ -323,8 +324,10 @@ std::vector<PosedFrame> PosedFrames(const MeasurementModel& model, const MapData
       squared_error += err_sq;
     }
     if (f.points.size() < static_cast<size_t>(tracker_internal::kMinTrackedInliers)) continue;
+    std::vector<size_t> all(f.points.size());
+    std::iota(all.begin(), all.end(), size_t{0});
     const std::optional<ViewCentreUncertainty> u = CentreUncertaintyOfView(
-        model.camera, model.pixel_sigma, camera_from_world, f.points, max_points);
+        model.camera, model.pixel_sigma, camera_from_world, f.points, all, max_points);
     if (!u) continue;
     // Exact data (the residuals far below the model's noise): the points' centre stands.
     const double variance_factor =

@@ -21,6 +21,12 @@ Eigen::Matrix<double, 2, 3> ProjectionJacobian(const Camera& camera, const Eigen
   return j;
 }
 
+// Square root of the largest eigenvalue: the largest standard deviation.
+double LargestSigma(const Eigen::Matrix3d& covariance) {
+  return std::sqrt(std::max(
+      0.0, Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(covariance).eigenvalues().maxCoeff()));
+}
+
 }  // namespace
 
 std::optional<MotionUncertainty> TwoViewMotionUncertainty(
@@ -100,26 +106,18 @@ std::optional<Eigen::Matrix3d> PoseCentreCovariance(
   return Eigen::Matrix3d(covariance.bottomRightCorner<3, 3>());
 }
 
-namespace {
-
-double LargestSigma(const Eigen::Matrix3d& covariance) {
-  return std::sqrt(std::max(
-      0.0, Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(covariance).eigenvalues().maxCoeff()));
-}
-
-}  // namespace
-
 std::optional<ViewCentreUncertainty> CentreUncertaintyOfView(
     const Camera& camera, double pixel_sigma, const Pose3& camera_from_world,
-    const std::vector<Eigen::Vector3d>& points_world, int max_points) {
-  if (points_world.empty()) return std::nullopt;
+    const std::vector<Eigen::Vector3d>& points_world, const std::vector<size_t>& use,
+    int max_points) {
+  if (use.empty()) return std::nullopt;
   const std::vector<size_t> subset =
-      EvenlySpacedIndices(points_world.size(), static_cast<size_t>(std::max(max_points, 1)));
+      EvenlySpacedIndices(use.size(), static_cast<size_t>(std::max(max_points, 1)));
   std::vector<Eigen::Vector3d> points;
   points.reserve(subset.size());
-  for (const size_t k : subset) points.push_back(points_world[k]);
-  const double noise = pixel_sigma * std::sqrt(static_cast<double>(subset.size()) /
-                                               static_cast<double>(points_world.size()));
+  for (const size_t k : subset) points.push_back(points_world[use[k]]);
+  const double noise =
+      pixel_sigma * std::sqrt(static_cast<double>(subset.size()) / static_cast<double>(use.size()));
   const std::optional<Eigen::Matrix3d> covariance =
       PoseCentreCovariance(camera, noise, camera_from_world, points);
   if (!covariance) return std::nullopt;
@@ -131,9 +129,7 @@ double PoseCentreSigma(const Camera& camera, double pixel_sigma, const Pose3& ca
                        const std::vector<Eigen::Vector3d>& points_world) {
   const std::optional<Eigen::Matrix3d> covariance =
       PoseCentreCovariance(camera, pixel_sigma, camera_from_world, points_world);
-  if (!covariance) return INFINITY;
-  return std::sqrt(
-      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(*covariance).eigenvalues().maxCoeff());
+  return covariance ? LargestSigma(*covariance) : INFINITY;
 }
 
 }  // namespace m2s::slam

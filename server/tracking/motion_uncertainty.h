@@ -36,10 +36,10 @@ std::optional<Eigen::Matrix3d> PoseCentreCovariance(
     const Camera& camera, double pixel_sigma, const Pose3& camera_from_world,
     const std::vector<Eigen::Vector3d>& points_world);
 
-// A view's centre uncertainty, on an even subset of at most `max_points` of the points (dense
-// views), its information scaled up to the whole (as if its noise were that much smaller):
-// the covariance, its largest standard deviation, and the subset's median depth. nullopt when
-// the points leave the pose undetermined.
+// A view's centre uncertainty from the points `use` indexes in `points_world`, on an even
+// subset of at most `max_points` of them (dense views), its information scaled up to the whole
+// (as if its noise were that much smaller): the covariance, its largest standard deviation,
+// and the subset's median depth. nullopt when the points leave the pose undetermined.
 struct ViewCentreUncertainty {
   Eigen::Matrix3d covariance;
   double sigma = 0.0;
@@ -47,7 +47,8 @@ struct ViewCentreUncertainty {
 };
 std::optional<ViewCentreUncertainty> CentreUncertaintyOfView(
     const Camera& camera, double pixel_sigma, const Pose3& camera_from_world,
-    const std::vector<Eigen::Vector3d>& points_world, int max_points);
+    const std::vector<Eigen::Vector3d>& points_world, const std::vector<size_t>& use,
+    int max_points);
 
 // Largest standard deviation (world units) of that centre (the square root of the covariance's
 // largest eigenvalue); infinity where the covariance is nullopt.

@@ -163,10 +163,8 @@ bool Tracker::PoseDetermined(const Association& a, const std::vector<bool>& inli
   // Dense views: an even subset, its information scaled up to the whole. The points' own
   // uncertainty is left out: shared by the points of one map, it moves the pose with them, and
   // young maps would lose every frame.
-  std::vector<Eigen::Vector3d> points;
-  for (const size_t i : used) points.push_back(a.points[i]);
   const std::optional<ViewCentreUncertainty> u = CentreUncertaintyOfView(
-      model_.camera, model_.pixel_sigma, camera_from_world, points, options_.max_points);
+      model_.camera, model_.pixel_sigma, camera_from_world, a.points, used, options_.max_points);
   return u && u->sigma <= kMaxCentreSigmaFraction * u->median_depth;
 }
 
