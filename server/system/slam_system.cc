@@ -442,12 +442,18 @@ void SlamSystem::RefineMap() {
       for (Record& r : trajectory_) {
         if (r.map_id == current_map_) RefineFramePose(options_.measurement(), current, &r);
       }
-      const int smoothed = SmoothLooseFrames(options_.measurement(), current, current_map_,
-                                             options_.tracker.max_points, &trajectory_);
-      if (smoothed > 0) M2S_LOG(kInfo) << smoothed << " loosely determined frames smoothed";
       const int solved = SolveUnposedFrames(options_.measurement(), current, current_map_,
-                                            options_.initializer.min_points, &trajectory_);
+                                            kUnposedMinPoints, &trajectory_);
       if (solved > 0) M2S_LOG(kInfo) << solved << " frames without a pose solved on the map";
+      const SmoothedFrames smoothed = SmoothLooseFrames(
+          options_.measurement(), current, current_map_, options_.tracker.max_points, &trajectory_);
+      if (smoothed.smoothed > 0)
+        M2S_LOG(kInfo) << smoothed.smoothed << " loosely determined frames smoothed";
+      if (smoothed.posed > 0) {
+        M2S_LOG(kInfo) << smoothed.posed
+                       << " frames without a pose given the centre interpolated between their "
+                          "neighbours and the rotation their points fit there";
+      }
     });
   });
 }

@@ -10,6 +10,7 @@
 #include <Eigen/LU>
 
 #include "m2s/common/numeric.h"
+#include "mapping/triangulation.h"
 #include "tracking/motion_uncertainty.h"
 #include "tracking/rotation_only.h"
 #include "tracking/tracker_internal.h"
@@ -181,6 +182,22 @@ void MappedObservations(const MapData& map, const TrajectoryRecord& record,
   }
 }
 
+// Whether `points` reprojection errors whose squares sum to `squared_error` are exact data:
+// their variance factor (2 per point, 6 for the pose) below kExactDataVarianceFactor.
+bool ExactData(const MeasurementModel& model, double squared_error, size_t points) {
+  return squared_error / (model.pixel_sigma * model.pixel_sigma *
+                          std::max(1.0, 2.0 * static_cast<double>(points) - 6.0)) <
+         kExactDataVarianceFactor;
+}
+
+// The pose of a record with one in map `map_id` of `map`.
+std::optional<Pose3> RecordPose(const MapData& map, int map_id, const TrajectoryRecord& record) {
+  if (!HasPose(record.state) || record.map_id != map_id || !record.reference) return std::nullopt;
+  const std::optional<Pose3> reference = map.ResolveKeyframePose(*record.reference);
+  if (!reference) return std::nullopt;
+  return *reference * record.reference_from_camera;
+}
+
 }  // namespace
 
 int SolveUnposedFrames(const MeasurementModel& model, const MapData& map, int map_id,
@@ -191,41 +208,51 @@ int SolveUnposedFrames(const MeasurementModel& model, const MapData& map, int ma
     KeyframeId reference = 0;  // of the posed frame the sweep came from
     double depth = 0.0;        // the inliers' median depth
   };
-  // Solves r[i] from `start`.
-  auto solve = [&](size_t i, const Solved& start) -> std::optional<Solved> {
+  // Solves r[i] from `start`: a pose, none (the view refused), or none with `diverged` (the
+  // solve found no inliers from its start, too far off after a fast turn: no opinion).
+  struct Outcome {
+    std::optional<Solved> pose;
+    bool diverged = false;
+  };
+  auto solve = [&](size_t i, const Solved& start) -> Outcome {
     std::vector<Eigen::Vector3d> points;
     std::vector<Eigen::Vector2d> uvs;
     MappedObservations(map, r[i], &points, &uvs);
-    if (points.size() < static_cast<size_t>(std::max(min_points, 1))) return std::nullopt;
+    if (points.size() < static_cast<size_t>(std::max(min_points, 1))) return {};
     Pose3 camera_from_world = start.world_from_camera.Inverse();
     const PoseOnlyResult result = OptimizePose(
         model.camera, tracker_internal::MakePoseOptions(model), points, uvs, &camera_from_world);
+    if (!result.converged && result.num_inliers == 0) return {std::nullopt, true};
     if (!result.converged || !camera_from_world.AllFinite() ||
         result.num_inliers <
             tracker_internal::kSparseViewInlierFraction * static_cast<double>(points.size())) {
-      return std::nullopt;
+      return {};
     }
     std::vector<Eigen::Vector3d> inliers;
+    double squared_error = 0.0;
     for (size_t k = 0; k < points.size(); ++k) {
-      if (result.inlier[k]) inliers.push_back(points[k]);
+      if (!result.inlier[k]) continue;
+      inliers.push_back(points[k]);
+      squared_error += ReprojectionErrorSq(model.camera, camera_from_world, points[k], uvs[k]);
     }
     const double depth = MedianDepth(camera_from_world, inliers);
-    if (!(PoseCentreSigma(model.camera, model.pixel_sigma, camera_from_world, inliers) <=
+    // Exact data (the smoother's rule) fixes the centre however few the points.
+    if (!ExactData(model, squared_error, inliers.size()) &&
+        !(PoseCentreSigma(model.camera, model.pixel_sigma, camera_from_world, inliers) <=
           kUnposedAgreement * depth)) {
-      return std::nullopt;
+      return {};
     }
-    return Solved{camera_from_world.Inverse(), start.reference, depth};
+    return {Solved{camera_from_world.Inverse(), start.reference, depth}};
   };
   auto posed = [&](size_t i) -> std::optional<Solved> {
-    if (!HasPose(r[i].state) || r[i].map_id != map_id || !r[i].reference) return std::nullopt;
-    const std::optional<Pose3> reference = map.ResolveKeyframePose(*r[i].reference);
-    if (!reference) return std::nullopt;
-    return Solved{*reference * r[i].reference_from_camera, *r[i].reference, 0.0};
+    const std::optional<Pose3> pose = RecordPose(map, map_id, r[i]);
+    if (!pose) return std::nullopt;
+    return Solved{*pose, *r[i].reference, 0.0};
   };
   auto unposed = [&](size_t i) { return !HasPose(r[i].state) && !r[i].observed_ids.empty(); };
   // One sweep in each direction, each solved frame starting the next.
   auto sweep = [&](bool forward) {
-    std::vector<std::optional<Solved>> out(r.size());
+    std::vector<Outcome> out(r.size());
     std::optional<Solved> last;
     for (size_t k = 0; k < r.size(); ++k) {
       const size_t i = forward ? k : r.size() - 1 - k;
@@ -233,32 +260,37 @@ int SolveUnposedFrames(const MeasurementModel& model, const MapData& map, int ma
         last = p;
       } else if (last && unposed(i)) {
         out[i] = solve(i, *last);
-        if (out[i]) last = out[i];
+        if (out[i].pose) last = out[i].pose;
       }
     }
     return out;
   };
-  const std::vector<std::optional<Solved>> from_before = sweep(true), from_after = sweep(false);
+  const std::vector<Outcome> from_before = sweep(true), from_after = sweep(false);
   int solved = 0;
   for (size_t i = 0; i < r.size(); ++i) {
-    const std::optional<Solved>& a = from_before[i];
-    const std::optional<Solved>& b = from_after[i];
+    const Outcome& a = from_before[i];
+    const Outcome& b = from_after[i];
     // Both sides must find the same pose: a view its points leave ambiguous (a few of them at
-    // its edge) converges to wherever its start lies.
-    if (!a || !b) continue;
-    const double apart =
-        (a->world_from_camera.translation() - b->world_from_camera.translation()).norm();
-    const double turned =
-        a->world_from_camera.rotation().angularDistance(b->world_from_camera.rotation());
-    if (!(apart <= kUnposedAgreement * a->depth) || !(turned <= kUnposedAgreementRad)) continue;
-    const std::optional<Pose3> reference = map.ResolveKeyframePose(a->reference);
+    // its edge) converges to wherever its start lies. A side that diverged has no say.
+    const std::optional<Solved>& pose = a.pose ? a.pose : b.pose;
+    if (!pose || (!a.pose && !a.diverged) || (!b.pose && !b.diverged)) continue;
+    if (a.pose && b.pose) {
+      const double apart =
+          (a.pose->world_from_camera.translation() - b.pose->world_from_camera.translation())
+              .norm();
+      const double turned = a.pose->world_from_camera.rotation().angularDistance(
+          b.pose->world_from_camera.rotation());
+      if (!(apart <= kUnposedAgreement * a.pose->depth) || !(turned <= kUnposedAgreementRad))
+        continue;
+    }
+    const std::optional<Pose3> reference = map.ResolveKeyframePose(pose->reference);
     if (!reference) continue;
     TrajectoryRecord& record = r[i];
     record.state = TrackingState::kOk;
     record.map_id = map_id;
-    record.reference = a->reference;
-    record.world_from_camera = a->world_from_camera;
-    record.reference_from_camera = reference->Inverse() * a->world_from_camera;
+    record.reference = pose->reference;
+    record.world_from_camera = pose->world_from_camera;
+    record.reference_from_camera = reference->Inverse() * pose->world_from_camera;
     ++solved;
   }
   return solved;
@@ -266,7 +298,8 @@ int SolveUnposedFrames(const MeasurementModel& model, const MapData& map, int ma
 
 namespace {
 
-// SmoothLooseFrames: a frame of the map with a pose; an anchor is a keyframe without
+// SmoothLooseFrames: a frame of the map with a pose, or one without a pose whose map points
+// may give it one (`unposed`: loose, its pose still to find); an anchor is a keyframe without
 // observations or a frame whose points determine its centre; a loose frame carries what the
 // fusion needs.
 struct PosedFrame {
@@ -275,6 +308,7 @@ struct PosedFrame {
   Pose3 world_from_camera;
   bool anchor = false;
   bool loose = false;
+  bool unposed = false;
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();  // of the points' centre
   std::vector<Eigen::Vector3d> points;                   // observations fitting the pose
   std::vector<Eigen::Vector2d> uvs;
@@ -293,6 +327,15 @@ std::vector<PosedFrame> PosedFrames(const MeasurementModel& model, const MapData
                                     int max_points, const std::vector<TrajectoryRecord>& r) {
   std::vector<PosedFrame> frames;
   for (size_t i = 0; i < r.size(); ++i) {
+    if (!HasPose(r[i].state) && !r[i].observed_ids.empty()) {
+      PosedFrame f;
+      f.index = i;
+      f.t = r[i].timestamp;
+      f.loose = f.unposed = true;
+      MappedObservations(map, r[i], &f.points, &f.uvs);
+      if (f.points.size() >= static_cast<size_t>(kUnposedMinPoints)) frames.push_back(std::move(f));
+      continue;
+    }
     if (!HasPose(r[i].state) || r[i].map_id != map_id || !r[i].reference) continue;
     const std::optional<Pose3> reference = map.ResolveKeyframePose(*r[i].reference);
     if (!reference) continue;
@@ -330,11 +373,8 @@ std::vector<PosedFrame> PosedFrames(const MeasurementModel& model, const MapData
         model.camera, model.pixel_sigma, camera_from_world, f.points, all, max_points);
     if (!u) continue;
     // Exact data (the residuals far below the model's noise): the points' centre stands.
-    const double variance_factor =
-        squared_error / (model.pixel_sigma * model.pixel_sigma *
-                         std::max(1.0, 2.0 * static_cast<double>(f.points.size()) - 6.0));
     f.loose = u->sigma > kLooseCentreSigmaFraction * u->median_depth &&
-              variance_factor >= kExactDataVarianceFactor;
+              !ExactData(model, squared_error, f.points.size());
     f.anchor = !f.loose;
     f.covariance = u->covariance;
     frames.push_back(std::move(f));
@@ -389,10 +429,99 @@ std::optional<std::pair<Eigen::Vector3d, double>> CentreFromAnchors(
   return std::nullopt;
 }
 
+// How far the anchors within kSmoothingWindowS of time `t` lie from the interpolation
+// between the anchors `span` apart around them (the nearest at least half of it before and
+// after, at most 1.5 times it apart), RMS: the error of an interpolation over that span,
+// the motion's curvature and the anchors' noise included. nullopt with fewer than
+// kSmoothingMinSamples such anchors.
+std::optional<double> InterpolationDeviation(const std::vector<PosedFrame>& frames, double t,
+                                             double span) {
+  std::vector<size_t> anchors;
+  for (size_t j = 0; j < frames.size(); ++j) {
+    if (frames[j].anchor) anchors.push_back(j);
+  }
+  double sum = 0.0;
+  int n = 0;
+  for (size_t m = 0; m < anchors.size(); ++m) {
+    const PosedFrame& b = frames[anchors[m]];
+    if (std::abs(b.t - t) > kSmoothingWindowS) continue;
+    std::optional<size_t> a, c;
+    for (size_t j = m; j-- > 0;) {
+      if (b.t - frames[anchors[j]].t >= 0.5 * span) {
+        a = anchors[j];
+        break;
+      }
+    }
+    for (size_t j = m + 1; j < anchors.size(); ++j) {
+      if (frames[anchors[j]].t - b.t >= 0.5 * span) {
+        c = anchors[j];
+        break;
+      }
+    }
+    if (!a || !c || frames[*c].t - frames[*a].t > 1.5 * span) continue;
+    sum += (Centre(b) - CentreAt(frames[*a], frames[*c], b.t)).squaredNorm();
+    ++n;
+  }
+  if (n < kSmoothingMinSamples) return std::nullopt;
+  return std::sqrt(sum / n);
+}
+
+// Gives the frame without a pose frames[k] the centre `centre` (the anchors', whose deviation
+// is `sigma`) and the rotation its map points fit there, when the prior's deviation is within
+// kUnposedPriorSigmaFraction of the points' median depth and the rotation explains most of
+// them (tracking's sparse-view rule; each point's bound widened by the prior's deviation seen
+// from its depth). Its reference keyframe is the nearest posed frame's.
+bool PoseAtPrior(const MeasurementModel& model, const MapData& map,
+                 const std::vector<PosedFrame>& frames, size_t k, const Eigen::Vector3d& centre,
+                 double sigma, std::vector<TrajectoryRecord>* records) {
+  const PosedFrame& f = frames[k];
+  std::optional<Pose3> pose = PoseAtCentre(model.camera, centre, f.points, f.uvs);
+  if (!pose) return false;
+  // Once more on the observations that fit the first fit (the wrong ids out).
+  std::vector<Eigen::Vector3d> points;
+  std::vector<Eigen::Vector2d> uvs;
+  for (size_t i = 0; i < f.points.size(); ++i) {
+    const double depth = (*pose * f.points[i]).z();
+    const double prior_px = model.camera.fx * sigma / std::max(depth, 1e-9);
+    const double max_err_sq =
+        kChi2TwoDof95 * (model.pixel_sigma * model.pixel_sigma + prior_px * prior_px);
+    if (ReprojectionErrorSq(model.camera, *pose, f.points[i], f.uvs[i]) > max_err_sq) continue;
+    points.push_back(f.points[i]);
+    uvs.push_back(f.uvs[i]);
+  }
+  if (points.size() < static_cast<size_t>(kUnposedMinPoints) ||
+      points.size() <
+          tracker_internal::kSparseViewInlierFraction * static_cast<double>(f.points.size())) {
+    return false;
+  }
+  pose = PoseAtCentre(model.camera, centre, points, uvs);
+  if (!pose || !(sigma <= kUnposedPriorSigmaFraction * MedianDepth(*pose, points))) return false;
+  // The nearest frame with a pose (before it first) lends its reference keyframe.
+  const TrajectoryRecord* neighbour = nullptr;
+  for (size_t step = 1; neighbour == nullptr && step < frames.size(); ++step) {
+    for (const size_t j : {k - step, k + step}) {
+      if (j < frames.size() && !frames[j].unposed) {
+        neighbour = &(*records)[frames[j].index];
+        break;
+      }
+    }
+  }
+  if (neighbour == nullptr) return false;
+  const std::optional<Pose3> reference = map.ResolveKeyframePose(*neighbour->reference);
+  if (!reference) return false;
+  TrajectoryRecord& record = (*records)[f.index];
+  record.state = TrackingState::kOk;
+  record.map_id = neighbour->map_id;
+  record.reference = neighbour->reference;
+  record.world_from_camera = pose->Inverse();
+  record.reference_from_camera = reference->Inverse() * pose->Inverse();
+  return true;
+}
+
 }  // namespace
 
-int SmoothLooseFrames(const MeasurementModel& model, const MapData& map, int map_id, int max_points,
-                      std::vector<TrajectoryRecord>* records) {
+SmoothedFrames SmoothLooseFrames(const MeasurementModel& model, const MapData& map, int map_id,
+                                 int max_points, std::vector<TrajectoryRecord>* records) {
   const std::vector<PosedFrame> frames = PosedFrames(model, map, map_id, max_points, *records);
   // How far an anchor lies from the interpolation of the anchors on either side of it, over
   // consecutive frames: the motion's smoothness at the map's scale, pose noise included.
@@ -405,16 +534,19 @@ int SmoothLooseFrames(const MeasurementModel& model, const MapData& map, int map
   }
   // The frame interval: the median time between consecutive frames with a pose.
   std::vector<double> intervals;
-  for (size_t k = 1; k < frames.size(); ++k) {
-    if (frames[k].t > frames[k - 1].t) intervals.push_back(frames[k].t - frames[k - 1].t);
+  const PosedFrame* previous = nullptr;
+  for (const PosedFrame& f : frames) {
+    if (f.unposed) continue;
+    if (previous != nullptr && f.t > previous->t) intervals.push_back(f.t - previous->t);
+    previous = &f;
   }
-  if (intervals.empty()) return 0;
+  if (intervals.empty()) return {};
   std::nth_element(intervals.begin(), intervals.begin() + intervals.size() / 2, intervals.end());
   const double interval = intervals[intervals.size() / 2];
-  int smoothed = 0;
+  SmoothedFrames out;
   for (size_t k = 0; k < frames.size(); ++k) {
     const PosedFrame& f = frames[k];
-    if (!f.loose) continue;
+    if (!f.loose || f.unposed) continue;
     const auto prior = CentreFromAnchors(frames, k, interval);
     if (!prior) continue;
     double sum = 0.0;
@@ -441,9 +573,33 @@ int SmoothLooseFrames(const MeasurementModel& model, const MapData& map, int map
     TrajectoryRecord& record = (*records)[f.index];
     const std::optional<Pose3> reference = map.ResolveKeyframePose(*record.reference);
     record.reference_from_camera = reference->Inverse() * pose->Inverse();
-    ++smoothed;
+    ++out.smoothed;
   }
-  return smoothed;
+  // Frames without a pose: only between anchors, the prior's deviation measured at their span.
+  for (size_t k = 0; k < frames.size(); ++k) {
+    const PosedFrame& f = frames[k];
+    if (!f.unposed) continue;
+    std::optional<size_t> a, c;
+    for (size_t j = k; j-- > 0 && f.t - frames[j].t <= kSmoothingMaxSpanS;) {
+      if (frames[j].anchor) {
+        a = j;
+        break;
+      }
+    }
+    for (size_t j = k + 1; j < frames.size() && frames[j].t - f.t <= kSmoothingMaxSpanS; ++j) {
+      if (frames[j].anchor) {
+        c = j;
+        break;
+      }
+    }
+    if (!a || !c) continue;
+    const std::optional<double> sigma =
+        InterpolationDeviation(frames, f.t, frames[*c].t - frames[*a].t);
+    if (!sigma) continue;
+    const Eigen::Vector3d centre = CentreAt(frames[*a], frames[*c], f.t);
+    if (PoseAtPrior(model, map, frames, k, centre, *sigma, records)) ++out.posed;
+  }
+  return out;
 }
 
 }  // namespace m2s::slam

@@ -75,6 +75,13 @@ constexpr double kSmoothingWindowS = 1.0;
 constexpr int kSmoothingMinSamples = 5;
 // System::RefineMap: iterations of the global bundle adjustment over every keyframe and point.
 constexpr int kFinalBaIterations = 20;
+// RefineMap: the map points a frame without a pose is solved on, at least. SmoothLooseFrames
+// gives such a frame whose points fix its rotation but not its centre the interpolated centre
+// when the interpolation's deviation is within kUnposedPriorSigmaFraction of the points'
+// depth (the scanned-objects drone with occlusion: its frames at 2.0-2.2 % end 2-7 mm off;
+// of the two at 4.0-4.2 %, one would be 37 mm off; docs/design/map_refinement.md).
+constexpr int kUnposedMinPoints = 20;
+constexpr double kUnposedPriorSigmaFraction = 0.025;
 
 inline bool HasPose(TrackingState state) {
   return state == TrackingState::kOk || state == TrackingState::kRelocalized;
@@ -136,10 +143,12 @@ bool RefineFramePose(const MeasurementModel& model, const MapData& map, Trajecto
 // frame starting the next, as tracking solves from the previous frame) and from the nearest
 // after it (a sweep backward). A solve counts when at least `min_points` map points are seen,
 // 75 % of them inliers (tracking's sparse-view rule), and they determine the camera's centre
-// within 5 % of their median depth (tracking's rule); the frame takes the pose when both
-// solves count and agree within 1 % of that depth and 1 degree. It then counts as tracked,
-// relative to the reference keyframe of the frame before it. Returns how many frames got a
-// pose.
+// within 1 % of their median depth, or fit it as exact data (noise-free features: their
+// squared errors below kExactDataVarianceFactor of the model's); the frame takes the pose when
+// both solves count and agree within 1 % of that depth and 1 degree, or when one counts and
+// the other found no inliers at all from its start (a fast turn since the frame it started
+// from: no second opinion). It then counts as tracked, relative to the reference keyframe of
+// the frame before it. Returns how many frames got a pose.
 int SolveUnposedFrames(const MeasurementModel& model, const MapData& map, int map_id,
                        int min_points, std::vector<TrajectoryRecord>* records);
 
@@ -150,9 +159,21 @@ int SolveUnposedFrames(const MeasurementModel& model, const MapData& map, int ma
 // well-determined frames (or keyframes) on either side, whose deviation is that of anchors
 // from their neighbours' interpolation within kSmoothingWindowS, grown with the span; the
 // rotation is refitted to the frame's bearings from the fused centre. `max_points`: the
-// tracker's (dense views are judged on an even subset, its information scaled up). Returns
-// how many frames it moved.
-int SmoothLooseFrames(const MeasurementModel& model, const MapData& map, int map_id, int max_points,
-                      std::vector<TrajectoryRecord>* records);
+// tracker's (dense views are judged on an even subset, its information scaled up).
+// Frames still without a pose that see at least kUnposedMinPoints map points, between two
+// well-determined frames at most kSmoothingMaxSpanS from them, take the centre interpolated
+// between those two and the rotation their points fit there (most of them within the
+// chi-square bound, widened by the centre's deviation), when that deviation is within
+// kUnposedPriorSigmaFraction of the points' median depth. The deviation is measured, not
+// grown: the RMS distance of the well-determined frames within kSmoothingWindowS from the
+// interpolation between frames the same span apart around each (the motion's curvature and
+// the poses' noise at that span). They then count as tracked, relative to the nearest posed
+// frame's reference keyframe. Returns how many frames it moved and how many it posed.
+struct SmoothedFrames {
+  int smoothed = 0;  // frames with a pose moved
+  int posed = 0;     // frames without one given one
+};
+SmoothedFrames SmoothLooseFrames(const MeasurementModel& model, const MapData& map, int map_id,
+                                 int max_points, std::vector<TrajectoryRecord>* records);
 
 }  // namespace m2s::slam
