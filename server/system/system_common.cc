@@ -434,17 +434,17 @@ std::optional<std::pair<Eigen::Vector3d, double>> CentreFromAnchors(
 // after, at most 1.5 times it apart), RMS: the error of an interpolation over that span,
 // the motion's curvature and the anchors' noise included. nullopt with fewer than
 // kSmoothingMinSamples such anchors.
-std::optional<double> InterpolationDeviation(const std::vector<PosedFrame>& frames, double t,
+// `anchors`: the indices of the anchors in `frames`, in time order.
+std::optional<double> InterpolationDeviation(const std::vector<PosedFrame>& frames,
+                                             const std::vector<size_t>& anchors, double t,
                                              double span) {
-  std::vector<size_t> anchors;
-  for (size_t j = 0; j < frames.size(); ++j) {
-    if (frames[j].anchor) anchors.push_back(j);
-  }
   double sum = 0.0;
   int n = 0;
-  for (size_t m = 0; m < anchors.size(); ++m) {
+  const auto first = std::lower_bound(anchors.begin(), anchors.end(), t - kSmoothingWindowS,
+                                      [&](size_t j, double time) { return frames[j].t < time; });
+  for (size_t m = static_cast<size_t>(first - anchors.begin()); m < anchors.size(); ++m) {
     const PosedFrame& b = frames[anchors[m]];
-    if (std::abs(b.t - t) > kSmoothingWindowS) continue;
+    if (b.t - t > kSmoothingWindowS) break;
     std::optional<size_t> a, c;
     for (size_t j = m; j-- > 0;) {
       if (b.t - frames[anchors[j]].t >= 0.5 * span) {
@@ -526,19 +526,22 @@ SmoothedFrames SmoothLooseFrames(const MeasurementModel& model, const MapData& m
   // How far an anchor lies from the interpolation of the anchors on either side of it, over
   // consecutive frames: the motion's smoothness at the map's scale, pose noise included.
   std::vector<std::pair<double, double>> deviation;  // (time, squared deviation)
-  for (size_t k = 1; k + 1 < frames.size(); ++k) {
-    const PosedFrame &a = frames[k - 1], &b = frames[k], &c = frames[k + 1];
+  std::vector<size_t> posed, anchors;                // indices into `frames`
+  for (size_t k = 0; k < frames.size(); ++k) {
+    if (!frames[k].unposed) posed.push_back(k);
+    if (frames[k].anchor) anchors.push_back(k);
+  }
+  for (size_t k = 1; k + 1 < posed.size(); ++k) {
+    const PosedFrame &a = frames[posed[k - 1]], &b = frames[posed[k]], &c = frames[posed[k + 1]];
     if (!a.anchor || !b.anchor || !c.anchor || !(c.t > a.t)) continue;
     if (c.t - a.t > kSmoothingConsecutiveS) continue;
     deviation.emplace_back(b.t, (Centre(b) - CentreAt(a, c, b.t)).squaredNorm());
   }
   // The frame interval: the median time between consecutive frames with a pose.
   std::vector<double> intervals;
-  const PosedFrame* previous = nullptr;
-  for (const PosedFrame& f : frames) {
-    if (f.unposed) continue;
-    if (previous != nullptr && f.t > previous->t) intervals.push_back(f.t - previous->t);
-    previous = &f;
+  for (size_t k = 1; k < posed.size(); ++k) {
+    const double dt = frames[posed[k]].t - frames[posed[k - 1]].t;
+    if (dt > 0.0) intervals.push_back(dt);
   }
   if (intervals.empty()) return {};
   std::nth_element(intervals.begin(), intervals.begin() + intervals.size() / 2, intervals.end());
@@ -594,7 +597,7 @@ SmoothedFrames SmoothLooseFrames(const MeasurementModel& model, const MapData& m
     }
     if (!a || !c) continue;
     const std::optional<double> sigma =
-        InterpolationDeviation(frames, f.t, frames[*c].t - frames[*a].t);
+        InterpolationDeviation(frames, anchors, f.t, frames[*c].t - frames[*a].t);
     if (!sigma) continue;
     const Eigen::Vector3d centre = CentreAt(frames[*a], frames[*c], f.t);
     if (PoseAtPrior(model, map, frames, k, centre, *sigma, records)) ++out.posed;
