@@ -170,6 +170,8 @@ namespace {
 // it and this angle.
 constexpr double kUnposedAgreement = 0.01;
 constexpr double kUnposedAgreementRad = M_PI / 180.0;
+// SolveUnposedFrames: PnP's RANSAC bound, in pixel sigmas (relocalisation's).
+constexpr double kUnposedPnpThresholdSigmas = 4.0;
 
 // The record's observations that are points of `map`.
 void MappedObservations(const MapData& map, const TrajectoryRecord& record,
@@ -266,13 +268,47 @@ int SolveUnposedFrames(const MeasurementModel& model, const MapData& map, int ma
     return out;
   };
   const std::vector<Outcome> from_before = sweep(true), from_after = sweep(false);
+  // A frame with a pose on one side only (before the first pose, after the last): the second
+  // opinion is a solve from PnP + RANSAC, which needs no start. Not on a young map (the rule
+  // of IsYoungMap): its few keyframes' points hold where they were seen from, not further.
+  const bool one_sided = map.keyframes().size() > static_cast<size_t>(kSmallMapKeyframes);
+  bool seen_posed = false;
+  std::vector<bool> before_any(r.size(), false), after_all(r.size(), false);
+  for (size_t i = 0; i < r.size(); ++i) {
+    seen_posed = seen_posed || posed(i).has_value();
+    before_any[i] = !seen_posed;
+  }
+  seen_posed = false;
+  for (size_t k = r.size(); k-- > 0;) {
+    seen_posed = seen_posed || posed(k).has_value();
+    after_all[k] = !seen_posed;
+  }
+  auto from_pnp = [&](size_t i) -> Outcome {
+    std::vector<Eigen::Vector3d> points;
+    std::vector<Eigen::Vector2d> uvs;
+    MappedObservations(map, r[i], &points, &uvs);
+    if (points.size() < static_cast<size_t>(std::max(min_points, 1))) return {};
+    std::vector<int> ransac;
+    const std::optional<Pose3> start = tracker_internal::PnpRansac(
+        model.camera, kUnposedPnpThresholdSigmas * model.pixel_sigma, points, uvs, &ransac);
+    if (!start) return {};
+    return solve(i, Solved{start->Inverse(), 0, 0.0});
+  };
   int solved = 0;
   for (size_t i = 0; i < r.size(); ++i) {
-    const Outcome& a = from_before[i];
-    const Outcome& b = from_after[i];
+    Outcome a = from_before[i];
+    Outcome b = from_after[i];
+    if (one_sided && before_any[i] && b.pose && unposed(i)) {
+      a = from_pnp(i);
+      a.diverged = false;
+    } else if (one_sided && after_all[i] && a.pose && unposed(i)) {
+      b = from_pnp(i);
+      b.diverged = false;
+    }
     // Both sides must find the same pose: a view its points leave ambiguous (a few of them at
     // its edge) converges to wherever its start lies. A side that diverged has no say.
-    const std::optional<Solved>& pose = a.pose ? a.pose : b.pose;
+    // The sweep's pose (its reference keyframe is the posed frame it came from).
+    const std::optional<Solved>& pose = before_any[i] ? b.pose : a.pose ? a.pose : b.pose;
     if (!pose || (!a.pose && !a.diverged) || (!b.pose && !b.diverged)) continue;
     if (a.pose && b.pose) {
       const double apart =

@@ -147,8 +147,11 @@ bool RefineFramePose(const MeasurementModel& model, const MapData& map, Trajecto
 // squared errors below kExactDataVarianceFactor of the model's); the frame takes the pose when
 // both solves count and agree within 1 % of that depth and 1 degree, or when one counts and
 // the other found no inliers at all from its start (a fast turn since the frame it started
-// from: no second opinion). It then counts as tracked, relative to the reference keyframe of
-// the frame before it. Returns how many frames got a pose.
+// from: no second opinion). A frame with a pose on one side only (before the map's first
+// posed frame, after its last) takes its sweep's pose when a solve started from PnP + RANSAC
+// on the same points (no start needed) agrees with it the same way, unless the map is young
+// (at most kSmallMapKeyframes keyframes). It then counts as tracked, relative to the reference
+// keyframe of the posed frame its sweep came from. Returns how many frames got a pose.
 int SolveUnposedFrames(const MeasurementModel& model, const MapData& map, int map_id,
                        int min_points, std::vector<TrajectoryRecord>* records);
 

@@ -2,6 +2,8 @@
 #pragma once
 
 #include <cmath>
+#include <optional>
+#include <vector>
 
 #include "m2s/common/numeric.h"
 #include "m2s/slam/options.h"
@@ -25,6 +27,13 @@ constexpr int kMinOverrulingPoints = 12;
 // inliers), or the frame is lost: a few points bunched at the edge of a view fit poses
 // decimetres apart within the noise.
 constexpr double kMaxCentreSigmaFraction = 0.05;
+
+// camera_from_world from world points and their pixels by PnP + RANSAC (OpenCV's AP3P on at
+// most 500 of them, evenly spread; tracker_recovery.cc), no start needed. nullopt when RANSAC
+// finds no pose or OpenCV rejects the input (logged).
+std::optional<Pose3> PnpRansac(const Camera& camera, double threshold_px,
+                               const std::vector<Eigen::Vector3d>& points,
+                               const std::vector<Eigen::Vector2d>& uvs, std::vector<int>* inliers);
 
 // Pose-only refinement options for the measurement model: Huber at the inlier bound.
 inline PoseOnlyOptions MakePoseOptions(const MeasurementModel& model) {

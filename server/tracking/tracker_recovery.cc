@@ -66,6 +66,19 @@ std::optional<Pose3> SolvePnpRansac(const Camera& camera, double threshold_px,
 
 }  // namespace
 
+std::optional<Pose3> tracker_internal::PnpRansac(const Camera& camera, double threshold_px,
+                                                 const std::vector<Eigen::Vector3d>& points,
+                                                 const std::vector<Eigen::Vector2d>& uvs,
+                                                 std::vector<int>* inliers) {
+  std::vector<cv::Point3d> object;
+  std::vector<cv::Point2d> image;
+  for (const size_t i : EvenlySpacedIndices(std::min(points.size(), uvs.size()), kMaxPnpPoints)) {
+    object.emplace_back(points[i].x(), points[i].y(), points[i].z());
+    image.emplace_back(uvs[i].x(), uvs[i].y());
+  }
+  return SolvePnpRansac(camera, threshold_px, object, image, inliers);
+}
+
 bool Tracker::Relocalise(const Association& a, Pose3* camera_from_world,
                          std::vector<bool>* inlier) {
   const int n = static_cast<int>(a.ids.size());

@@ -160,7 +160,8 @@ TEST_F(UnposedFrames, GivesLostFramesBetweenTwoPosesTheirTruePoses) {
 }
 
 TEST_F(UnposedFrames, LeavesFramesWithOneSideFewPointsOrAnUndeterminedView) {
-  // Frame 8 lost too: frames 1-8 have a pose on one side only.
+  // Frame 8 lost too: frames 1-8 have a pose on one side only, and the map (one keyframe) is
+  // young.
   records[8].state = TrackingState::kLost;
   records[8].reference.reset();
   int solved = -1;
@@ -195,6 +196,31 @@ TEST_F(UnposedFrames, LeavesFramesWithOneSideFewPointsOrAnUndeterminedView) {
   map.Read([&](const MapData& m) { solved = SolveUnposedFrames(model, m, 0, 4, &records); });
   EXPECT_EQ(solved, 6);
   EXPECT_EQ(records[5].state, TrackingState::kLost);
+}
+
+TEST_F(UnposedFrames, FramesBeforeTheFirstPoseOfAMatureMapAreSolvedWithAPnpSecondOpinion) {
+  // Frames 0-7 lost, frame 8 tracked: a pose on one side only. The map gets four more
+  // keyframes (no longer young): each frame's sweep solve is checked against PnP + RANSAC.
+  for (int i = 0; i < 8; ++i) {
+    records[i].state = TrackingState::kLost;
+    records[i].reference.reset();
+  }
+  map.Write([](MapData& m) {
+    for (KeyframeId id = kReference + 1; id <= kReference + 4; ++id) {
+      Keyframe kf;
+      kf.id = id;
+      m.AddKeyframe(std::move(kf));
+    }
+  });
+  int solved = 0;
+  map.Read([&](const MapData& m) { solved = SolveUnposedFrames(model, m, 0, 60, &records); });
+  EXPECT_EQ(solved, 8);
+  for (int i = 0; i < 8; ++i) {
+    ASSERT_EQ(records[i].state, TrackingState::kOk) << i;
+    const Pose3 error = truths[i].Inverse() * records[i].reference_from_camera;
+    EXPECT_LT(error.translation().norm(), 1e-5) << i;
+    EXPECT_LT(Eigen::AngleAxisd(error.rotation()).angle(), 1e-5) << i;
+  }
 }
 
 TEST_F(UnposedFrames, ExactObservationsOfAFewPointsFixThePose) {
