@@ -10,6 +10,7 @@
 #include "m2s/common/logging.h"
 #include "m2s/common/numeric.h"
 #include "map/map_merge.h"
+#include "system/trajectory_refinement.h"
 #include "tracking/feature_budget.h"
 
 namespace m2s::slam {

@@ -1,7 +1,8 @@
-// RefineFramePose, SolveUnposedFrames, SmoothLooseFrames' frames without a pose and
-// KeepObservations (server/system/system_common.h): a tracked frame re-solved on the map its
-// observations refer to, and frames returned without a pose solved on it or given the centre
-// interpolated between tracked ones, against the known poses they were seen from.
+// RefineFramePose, SolveUnposedFrames, SmoothLooseFrames' frames without a pose
+// (server/system/trajectory_refinement.h) and KeepObservations (system_common.h): a tracked
+// frame re-solved on the map its observations refer to, and frames returned without a pose
+// solved on it or given the centre interpolated between tracked ones, against the known poses
+// they were seen from.
 #include <cmath>
 #include <random>
 #include <vector>
@@ -10,6 +11,7 @@
 
 #include "map/map.h"
 #include "system/system_common.h"
+#include "system/trajectory_refinement.h"
 
 namespace m2s::slam {
 namespace {
