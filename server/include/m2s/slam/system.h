@@ -157,11 +157,12 @@ class System {
 
   // Refines the whole current map by a global bundle adjustment (every keyframe and point, as
   // at the end of a session), then re-solves every other tracked frame of that map on the
-  // refined map from the observations it kept (Options::frame_observations_kept), smooths the
-  // frames whose points leave their centre loosely determined between the well-determined
-  // frames around them, and solves frames returned without a pose, between two frames with
-  // one, on it from the features they kept when the map determines them
-  // (docs/design/map_refinement.md). Trajectory() follows;
+  // refined map from the observations it kept (Options::frame_observations_kept), solves
+  // frames returned without a pose on it from the features they kept when the map determines
+  // them, smooths the frames whose points leave their centre loosely determined between the
+  // well-determined frames around them, and gives frames still without a pose whose points fix
+  // only their rotation the centre interpolated between those (docs/design/map_refinement.md).
+  // Trajectory() follows;
   // the poses and states Track() returned stay as they were. Tracking may go on. Systems without
   // a map of their own (a plug-in method, a map group's agent) and a loaded map tracked in
   // localisation-only mode are left as they are.
