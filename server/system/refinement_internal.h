@@ -14,9 +14,12 @@
 
 namespace m2s::slam::refinement_internal {
 
-// The record's observations that are points of `map` (with observers), with their pixels.
+// The record's observations that are points of `map` (with observers), with their pixels and,
+// with `uncertainties`, each point's relative uncertainty (MapPoint::uncertainty, 0 where
+// unknown).
 void MappedObservations(const MapData& map, const TrajectoryRecord& record,
-                        std::vector<Eigen::Vector3d>* points, std::vector<Eigen::Vector2d>* uvs);
+                        std::vector<Eigen::Vector3d>* points, std::vector<Eigen::Vector2d>* uvs,
+                        std::vector<double>* uncertainties = nullptr);
 
 // Whether `points` reprojection errors whose squares sum to `squared_error` are exact data:
 // their variance factor (2 per point, 6 for the pose) below kExactDataVarianceFactor.

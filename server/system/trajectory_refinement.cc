@@ -18,12 +18,14 @@ namespace m2s::slam {
 namespace refinement_internal {
 
 void MappedObservations(const MapData& map, const TrajectoryRecord& record,
-                        std::vector<Eigen::Vector3d>* points, std::vector<Eigen::Vector2d>* uvs) {
+                        std::vector<Eigen::Vector3d>* points, std::vector<Eigen::Vector2d>* uvs,
+                        std::vector<double>* uncertainties) {
   for (size_t i = 0; i < record.observed_ids.size(); ++i) {
     const MapPoint* p = map.point(record.observed_ids[i]);
     if (p == nullptr || p->observers.empty()) continue;
     points->push_back(p->position);
     uvs->push_back(record.observed_uvs[i].cast<double>());
+    if (uncertainties != nullptr) uncertainties->push_back(std::max(p->uncertainty, 0.0));
   }
 }
 
@@ -95,12 +97,13 @@ int SolveUnposedFrames(const MeasurementModel& model, const MapData& map, int ma
   };
   // The frame's map points and pixels; false below min_points.
   auto observations = [&](size_t i, std::vector<Eigen::Vector3d>* points,
-                          std::vector<Eigen::Vector2d>* uvs) {
-    MappedObservations(map, r[i], points, uvs);
+                          std::vector<Eigen::Vector2d>* uvs, std::vector<double>* uncertainties) {
+    MappedObservations(map, r[i], points, uvs, uncertainties);
     return points->size() >= static_cast<size_t>(std::max(min_points, 1));
   };
   auto solve_on = [&](const std::vector<Eigen::Vector3d>& points,
-                      const std::vector<Eigen::Vector2d>& uvs, const Solved& start) -> Outcome {
+                      const std::vector<Eigen::Vector2d>& uvs,
+                      const std::vector<double>& uncertainties, const Solved& start) -> Outcome {
     Pose3 camera_from_world = start.world_from_camera.Inverse();
     const PoseOnlyResult result = OptimizePose(
         model.camera, tracker_internal::MakePoseOptions(model), points, uvs, &camera_from_world);
@@ -111,16 +114,20 @@ int SolveUnposedFrames(const MeasurementModel& model, const MapData& map, int ma
       return {};
     }
     std::vector<Eigen::Vector3d> inliers;
+    std::vector<double> sigmas;  // of the inliers' positions, world units
     double squared_error = 0.0;
     for (size_t k = 0; k < points.size(); ++k) {
       if (!result.inlier[k]) continue;
       inliers.push_back(points[k]);
+      sigmas.push_back(uncertainties[k] * std::abs((camera_from_world * points[k]).z()));
       squared_error += ReprojectionErrorSq(model.camera, camera_from_world, points[k], uvs[k]);
     }
     const double depth = MedianDepth(camera_from_world, inliers);
-    // Exact data (the smoother's rule) fixes the centre however few the points.
+    // Exact data (the smoother's rule) fixes the centre however few the points. Otherwise the
+    // centre's deviation counts the points' own: a view of points triangulated over small
+    // baselines only (unconstrained) fits a pose well that is decimetres off.
     if (!ExactData(model, squared_error, inliers.size()) &&
-        !(PoseCentreSigma(model.camera, model.pixel_sigma, camera_from_world, inliers) <=
+        !(PoseCentreSigma(model.camera, model.pixel_sigma, camera_from_world, inliers, sigmas) <=
           kUnposedAgreement * depth)) {
       return {};
     }
@@ -129,8 +136,9 @@ int SolveUnposedFrames(const MeasurementModel& model, const MapData& map, int ma
   auto solve = [&](size_t i, const Solved& start) -> Outcome {
     std::vector<Eigen::Vector3d> points;
     std::vector<Eigen::Vector2d> uvs;
-    if (!observations(i, &points, &uvs)) return {};
-    return solve_on(points, uvs, start);
+    std::vector<double> uncertainties;
+    if (!observations(i, &points, &uvs, &uncertainties)) return {};
+    return solve_on(points, uvs, uncertainties, start);
   };
   // The frames with a pose in the map, once.
   std::vector<std::optional<Solved>> posed_frames(r.size());
@@ -175,12 +183,13 @@ int SolveUnposedFrames(const MeasurementModel& model, const MapData& map, int ma
   auto from_pnp = [&](size_t i) -> Outcome {
     std::vector<Eigen::Vector3d> points;
     std::vector<Eigen::Vector2d> uvs;
-    if (!observations(i, &points, &uvs)) return {};
+    std::vector<double> uncertainties;
+    if (!observations(i, &points, &uvs, &uncertainties)) return {};
     std::vector<int> ransac;
     const std::optional<Pose3> start = tracker_internal::PnpRansac(
         model.camera, kUnposedPnpThresholdSigmas * model.pixel_sigma, points, uvs, &ransac);
     if (!start) return {};
-    return solve_on(points, uvs, Solved{start->Inverse(), 0, 0.0});
+    return solve_on(points, uvs, uncertainties, Solved{start->Inverse(), 0, 0.0});
   };
   int solved = 0;
   for (size_t i = 0; i < r.size(); ++i) {

@@ -57,8 +57,10 @@ bool RefineFramePose(const MeasurementModel& model, const MapData& map, Trajecto
 // frame starting the next, as tracking solves from the previous frame) and from the nearest
 // after it (a sweep backward). A solve counts when at least `min_points` map points are seen,
 // 75 % of them inliers (tracking's sparse-view rule), and they determine the camera's centre
-// within 1 % of their median depth, or fit it as exact data (noise-free features: their
-// squared errors below kExactDataVarianceFactor of the model's); the frame takes the pose when
+// within 1 % of their median depth, counting each point's own uncertainty (MapPoint::
+// uncertainty: a view of points triangulated over small baselines fixes a pose no better than
+// they are known), or fit it as exact data (noise-free features: their squared errors below
+// kExactDataVarianceFactor of the model's); the frame takes the pose when
 // both solves count and agree within 1 % of that depth and 1 degree, or when one counts and
 // the other found no inliers at all from its start (a fast turn since the frame it started
 // from: no second opinion). A frame with a pose on one side only (before the map's first

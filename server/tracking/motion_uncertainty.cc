@@ -5,7 +5,9 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
+#include <Eigen/LU>
 
+#include "m2s/common/check.h"
 #include "m2s/common/numeric.h"
 
 namespace m2s::slam {
@@ -78,22 +80,29 @@ std::optional<MotionUncertainty> TwoViewMotionUncertainty(
 
 std::optional<Eigen::Matrix3d> PoseCentreCovariance(
     const Camera& camera, double pixel_sigma, const Pose3& camera_from_world,
-    const std::vector<Eigen::Vector3d>& points_world) {
+    const std::vector<Eigen::Vector3d>& points_world, const std::vector<double>& point_sigmas) {
+  M2S_CHECK(point_sigmas.empty() || point_sigmas.size() == points_world.size());
+  if (!(pixel_sigma > 0.0)) return std::nullopt;
   // x_c = R (X - C): d x_c / d theta = -[x_c]x (rotation perturbed on the left), d x_c / d C = -R.
   const Eigen::Matrix3d r = camera_from_world.RotationMatrix();
   Eigen::Matrix<double, 6, 6> information = Eigen::Matrix<double, 6, 6>::Zero();
+  const Eigen::Matrix2d pixel_covariance = pixel_sigma * pixel_sigma * Eigen::Matrix2d::Identity();
   int used = 0;
-  for (const Eigen::Vector3d& x : points_world) {
-    const Eigen::Vector3d p = camera_from_world * x;
+  for (size_t i = 0; i < points_world.size(); ++i) {
+    const Eigen::Vector3d p = camera_from_world * points_world[i];
     if (!(p.z() > 0.0)) continue;
     Eigen::Matrix<double, 3, 6> dp_dpose;
     dp_dpose << -Hat(p), -r;
-    const Eigen::Matrix<double, 2, 6> j = ProjectionJacobian(camera, p) * dp_dpose;
-    information += j.transpose() * j;
+    const Eigen::Matrix<double, 2, 3> projection = ProjectionJacobian(camera, p);
+    const Eigen::Matrix<double, 2, 6> j = projection * dp_dpose;
+    // An isotropic point covariance s^2 I stays s^2 I in the camera frame.
+    const double s = point_sigmas.empty() ? 0.0 : std::max(point_sigmas[i], 0.0);
+    const Eigen::Matrix2d covariance =
+        pixel_covariance + s * s * projection * projection.transpose();
+    information += j.transpose() * covariance.inverse() * j;
     ++used;
   }
-  if (used < 3 || !(pixel_sigma > 0.0)) return std::nullopt;
-  information /= pixel_sigma * pixel_sigma;
+  if (used < 3) return std::nullopt;
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>> eig(information);
   // Rank-deficient (within rounding): some direction of the pose is not observed.
   if (eig.info() != Eigen::Success ||
@@ -126,9 +135,10 @@ std::optional<ViewCentreUncertainty> CentreUncertaintyOfView(
 }
 
 double PoseCentreSigma(const Camera& camera, double pixel_sigma, const Pose3& camera_from_world,
-                       const std::vector<Eigen::Vector3d>& points_world) {
+                       const std::vector<Eigen::Vector3d>& points_world,
+                       const std::vector<double>& point_sigmas) {
   const std::optional<Eigen::Matrix3d> covariance =
-      PoseCentreCovariance(camera, pixel_sigma, camera_from_world, points_world);
+      PoseCentreCovariance(camera, pixel_sigma, camera_from_world, points_world, point_sigmas);
   return covariance ? LargestSigma(*covariance) : INFINITY;
 }
 

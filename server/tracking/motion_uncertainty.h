@@ -31,10 +31,13 @@ std::optional<MotionUncertainty> TwoViewMotionUncertainty(
 // Covariance (world units squared) of a camera's centre solved from known points, its rotation
 // unknown too, for image noise `pixel_sigma` on their projections: the position block of the
 // inverse of the pose's Fisher information. nullopt when the points leave the pose undetermined
-// (fewer than 3 in front of the camera, or all on one ray).
+// (fewer than 3 in front of the camera, or all on one ray). With `point_sigmas` (world units,
+// one per point, or empty), each point's own position is that uncertain in every direction: its
+// projection's noise grows by the deviation that projects to (a map point triangulated over a
+// small baseline fixes a pose less than an exact one).
 std::optional<Eigen::Matrix3d> PoseCentreCovariance(
     const Camera& camera, double pixel_sigma, const Pose3& camera_from_world,
-    const std::vector<Eigen::Vector3d>& points_world);
+    const std::vector<Eigen::Vector3d>& points_world, const std::vector<double>& point_sigmas = {});
 
 // A view's centre uncertainty from the points `use` indexes in `points_world`, on an even
 // subset of at most `max_points` of them (dense views), its information scaled up to the whole
@@ -53,6 +56,7 @@ std::optional<ViewCentreUncertainty> CentreUncertaintyOfView(
 // Largest standard deviation (world units) of that centre (the square root of the covariance's
 // largest eigenvalue); infinity where the covariance is nullopt.
 double PoseCentreSigma(const Camera& camera, double pixel_sigma, const Pose3& camera_from_world,
-                       const std::vector<Eigen::Vector3d>& points_world);
+                       const std::vector<Eigen::Vector3d>& points_world,
+                       const std::vector<double>& point_sigmas = {});
 
 }  // namespace m2s::slam
