@@ -356,7 +356,11 @@ std::optional<TwoViewReconstruction> ReconstructTwoViewUnguarded(
       refused->reason = "too little parallax";
       return std::nullopt;
     }
-    // A loosely determined rotation: ask the other estimators.
+    // A loosely determined rotation: ask the other estimators. checks[0] is now checked on all
+    // the model's inliers while twin() checks the other motions on the subset: a second
+    // opinion is a twin when its cost on the subset is below the best motion's on all the
+    // inliers plus the chi-square margin, a looser test than on the same points
+    // (design/two_view_initialisation.md, Limits).
     if (second_opinions) {
       const std::optional<MotionUncertainty> u = TwoViewMotionUncertainty(
           model.camera, model.pixel_sigma, checks[0].camera1_from_camera0, checks[0].points);
