@@ -114,7 +114,9 @@ int SolveUnposedFrames(const MeasurementModel& model, const MapData& map, int ma
       return {};
     }
     std::vector<Eigen::Vector3d> inliers;
-    std::vector<double> sigmas;  // of the inliers' positions, world units
+    // The inliers' deviations in world units: the relative uncertainty (over the depth they
+    // were seen at) taken at their depth in this view.
+    std::vector<double> sigmas;
     double squared_error = 0.0;
     for (size_t k = 0; k < points.size(); ++k) {
       if (!result.inlier[k]) continue;
