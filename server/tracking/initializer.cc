@@ -2,10 +2,12 @@
 
 #include <algorithm>
 #include <chrono>
+#include <iterator>
 #include <unordered_map>
 
 #include "m2s/common/logging.h"
 #include "m2s/common/numeric.h"
+#include "mapping/triangulation.h"
 #include "optimization/problems.h"
 #include "tracking/tracker_internal.h"
 
@@ -24,6 +26,148 @@ constexpr double kMaxInitRetryDelayS = 0.1;
 constexpr int kMaxSecondOpinionRefusals = 3;
 // Seed() takes as reference the earliest frame with this share of the most features.
 constexpr double kSeedReferenceShare = 0.8;
+// AdjustFromEveryStart: starts that leave more than this share of the points behind a view
+// are skipped, and so are starts this close (degrees of rotation and of translation direction)
+// to one already adjusted.
+constexpr double kMaxStartBehind = 0.2;
+constexpr double kSameStartDeg = 0.5;
+// AdjustFromEveryStart compares the starts on an even subset of at most this many of the shared
+// features (an initialisation stalls tracking for the adjustments' time).
+constexpr size_t kMaxStartPoints = 300;
+
+double RadToDeg(double rad) { return rad * 180.0 / M_PI; }
+
+// The two-view bundle adjustment problem of an initialisation: view 0 fixed at the origin,
+// view 1 at `camera1_from_camera0`, a point for each of `ids` (sorted, shared by the views) at
+// `points` (camera 0; parallel to `ids`), or, with `points` empty, triangulated (DLT) with that
+// motion and left out where it does not lie in front of both views.
+BaProblem TwoViewProblem(const Camera& camera, const SortedFeatures& view0,
+                         const SortedFeatures& view1, const Pose3& camera1_from_camera0,
+                         const std::vector<VertexId>& ids,
+                         const std::vector<Eigen::Vector3d>& points) {
+  BaProblem problem;
+  problem.keyframes = {{0, Pose3::Identity(), true}, {1, camera1_from_camera0, false}};
+  for (size_t k = 0; k < ids.size(); ++k) {
+    const auto uv = [&](const SortedFeatures& f) -> std::optional<Eigen::Vector2d> {
+      const auto it = std::lower_bound(f.ids.begin(), f.ids.end(), ids[k]);
+      if (it == f.ids.end() || *it != ids[k]) return std::nullopt;
+      return f.uvs[static_cast<size_t>(it - f.ids.begin())];
+    };
+    const std::optional<Eigen::Vector2d> uv0 = uv(view0), uv1 = uv(view1);
+    if (!uv0 || !uv1) continue;
+    std::optional<Eigen::Vector3d> p;
+    if (!points.empty()) {
+      p = points[k];
+    } else {
+      p = TriangulateDlt(camera, {Pose3::Identity(), camera1_from_camera0}, {*uv0, *uv1});
+      if (!p || !(p->z() > 0.0) || !((camera1_from_camera0 * *p).z() > 0.0)) continue;
+    }
+    problem.points.push_back({ids[k], *p, false});
+    const int index = static_cast<int>(problem.points.size() - 1);
+    problem.observations.push_back({0, index, *uv0});
+    problem.observations.push_back({1, index, *uv1});
+  }
+  return problem;
+}
+
+// The ids two views share, sorted: an even subset of at most `max_count` of them.
+std::vector<VertexId> SharedIds(const SortedFeatures& a, const SortedFeatures& b,
+                                size_t max_count) {
+  std::vector<VertexId> shared;
+  std::set_intersection(a.ids.begin(), a.ids.end(), b.ids.begin(), b.ids.end(),
+                        std::back_inserter(shared));
+  std::vector<VertexId> out;
+  for (const size_t i : EvenlySpacedIndices(shared.size(), max_count)) out.push_back(shared[i]);
+  return out;
+}
+
+// The points of an adjusted two-view problem a map takes: none of their observations an
+// outlier, finite, in front of both views.
+void AdjustedPoints(const BaProblem& problem, const BundleAdjustmentResult& result,
+                    std::vector<VertexId>* ids, std::vector<Eigen::Vector3d>* points) {
+  std::vector<bool> bad(problem.points.size(), false);
+  for (size_t o = 0; o < problem.observations.size(); ++o) {
+    if (o < result.outlier.size() && result.outlier[o])
+      bad[static_cast<size_t>(problem.observations[o].point_index)] = true;
+  }
+  const Pose3& camera1_from_world = problem.keyframes[1].camera_from_world;
+  std::vector<VertexId> out_ids;
+  std::vector<Eigen::Vector3d> out_points;
+  for (size_t i = 0; i < problem.points.size(); ++i) {
+    const BaPoint& point = problem.points[i];
+    const Eigen::Vector3d& p = point.position_world;
+    if (bad[i] || !p.allFinite() || p.z() <= 0.0 || (camera1_from_world * p).z() <= 0.0) continue;
+    out_ids.push_back(point.id);
+    out_points.push_back(p);
+  }
+  *ids = std::move(out_ids);
+  *points = std::move(out_points);
+}
+
+// AdjustFromEveryStart's result: the adjusted problem and how the adjustment went.
+struct TwoViewAdjustment {
+  BaProblem problem;
+  BundleAdjustmentResult result;
+  double cost = 0.0;
+  bool from_start = false;  // the adjustment from `start`
+  int adjustments = 0;      // starts adjusted in all
+};
+
+// The two views' bundle adjustment of the points `ids` (every shared feature), triangulated
+// from `start` and from each of `candidates`. The adjustment from `start` is kept unless
+// another's cost is lower by more than chi-square (5 dof, 99.9 %): within that margin the views
+// do not tell the minima apart (a valley of motions, which the gates judged before). A start
+// that leaves more than kMaxStartBehind of the points behind a view (a wrong sign, a wrong
+// decomposition), or lies within kSameStartDeg of rotation and translation direction of a
+// start already adjusted, is skipped. The cost: each observation's squared error capped at the
+// chi-square bound (2 dof, 95 %), a point left out counting the cap twice. nullopt when no
+// adjustment succeeds.
+std::optional<TwoViewAdjustment> AdjustFromEveryStart(
+    const MeasurementModel& model, const BundleAdjustmentOptions& ba, const SortedFeatures& view0,
+    const SortedFeatures& view1, const Pose3& start, const std::vector<VertexId>& ids,
+    const std::vector<Pose3>& candidates) {
+  const double cap = kChi2TwoDof95 * model.pixel_sigma * model.pixel_sigma;
+  std::optional<TwoViewAdjustment> best;
+  std::vector<Pose3> tried;
+  int adjustments = 0;
+  auto same_as_tried = [&](const Pose3& motion) {
+    return std::any_of(tried.begin(), tried.end(), [&](const Pose3& other) {
+      const double turned = RadToDeg(motion.rotation().angularDistance(other.rotation()));
+      const double cos_direction =
+          motion.translation().normalized().dot(other.translation().normalized());
+      return turned < kSameStartDeg &&
+             RadToDeg(std::acos(std::clamp(cos_direction, -1.0, 1.0))) < kSameStartDeg;
+    });
+  };
+  auto adjust = [&](const Pose3& motion) {
+    if (!motion.AllFinite() || same_as_tried(motion)) return;
+    tried.push_back(motion);
+    TwoViewAdjustment a;
+    a.from_start = tried.size() == 1;
+    a.problem = TwoViewProblem(model.camera, view0, view1, motion, ids, {});
+    if (static_cast<double>(a.problem.points.size()) <
+        (1.0 - kMaxStartBehind) * static_cast<double>(ids.size())) {
+      return;
+    }
+    a.result = BundleAdjust(model.camera, ba, &a.problem);
+    ++adjustments;
+    if (!a.result.success) return;
+    a.cost = 2.0 * cap * static_cast<double>(ids.size() - a.problem.points.size());
+    for (const BaObservation& o : a.problem.observations) {
+      const Eigen::Vector3d p =
+          a.problem.keyframes[static_cast<size_t>(o.keyframe_index)].camera_from_world *
+          a.problem.points[static_cast<size_t>(o.point_index)].position_world;
+      a.cost += p.z() > 0.0 ? std::min(cap, (model.camera.Project(p) - o.uv).squaredNorm()) : cap;
+    }
+    // The first adjustment is `start`'s; a later one must beat the best by the margin.
+    const double margin = kChi2FiveDof999 * model.pixel_sigma * model.pixel_sigma;
+    if (!best || a.cost < best->cost - margin) best = std::move(a);
+  };
+  adjust(start);
+  for (const Pose3& candidate : candidates) adjust(candidate);
+  if (best) best->adjustments = adjustments;
+  return best;
+}
 
 }  // namespace
 
@@ -81,20 +225,12 @@ std::optional<InitialMap> Initializer::Process(int64_t seq, double timestamp,
     return std::nullopt;
   }
 
-  // Full bundle adjustment of the two views (the first one fixed), then scale: median depth 1.
-  BaProblem problem;
-  problem.keyframes = {{0, Pose3::Identity(), true}, {1, two_view->camera1_from_camera0, false}};
-  const SortedFeatures* views[2] = {&reference_->features, &features};
-  for (size_t i = 0; i < two_view->ids.size(); ++i) {
-    const VertexId id = two_view->ids[i];
-    problem.points.push_back({id, two_view->points[i], false});
-    for (int v = 0; v < 2; ++v) {
-      const auto& f = *views[v];
-      const auto it = std::lower_bound(f.ids.begin(), f.ids.end(), id);
-      problem.observations.push_back({v, static_cast<int>(problem.points.size() - 1),
-                                      f.uvs[static_cast<size_t>(it - f.ids.begin())]});
-    }
-  }
+  // Full bundle adjustment of the two views (the first one fixed) on the points of the
+  // reconstruction, gated once more; then the same adjustment from the other estimators'
+  // motions (below); then scale: median depth 1.
+  BaProblem problem =
+      TwoViewProblem(model_.camera, reference_->features, features, two_view->camera1_from_camera0,
+                     two_view->ids, two_view->points);
   BundleAdjustmentOptions ba;
   ba.pixel_sigma = model_.pixel_sigma;
   ba.huber_delta_px = 2.0 * model_.pixel_sigma;
@@ -103,35 +239,62 @@ std::optional<InitialMap> Initializer::Process(int64_t seq, double timestamp,
   const BundleAdjustmentResult result = BundleAdjust(model_.camera, ba, &problem);
   if (!result.success) {
     last_failure_ = "initial bundle adjustment failed";
+    M2S_LOG(kDebug) << "initialisation with frames " << reference_->seq << " and " << seq
+                    << ": the bundle adjustment failed";
     set_reference();
     return std::nullopt;
   }
-  std::vector<bool> bad(problem.points.size(), false);
-  for (size_t o = 0; o < problem.observations.size(); ++o) {
-    if (o < result.outlier.size() && result.outlier[o])
-      bad[problem.observations[o].point_index] = true;
-  }
-  const Pose3 camera1_from_world = problem.keyframes[1].camera_from_world;
+  Pose3 camera1_from_world = problem.keyframes[1].camera_from_world;
   InitialMap map;
-  for (size_t i = 0; i < problem.points.size(); ++i) {
-    const Eigen::Vector3d& p = problem.points[i].position_world;
-    if (bad[i] || !p.allFinite() || p.z() <= 0.0 || (camera1_from_world * p).z() <= 0.0) continue;
-    map.point_ids.push_back(problem.points[i].id);
-    map.points.push_back(p);
-  }
+  AdjustedPoints(problem, result, &map.point_ids, &map.points);
   // The gate of ReconstructTwoView once more, on the refined motion and points: the adjustment
   // can leave a motion the two-view estimate only seemed to determine.
   const std::optional<MotionUncertainty> uncertainty =
       TwoViewMotionUncertainty(model_.camera, model_.pixel_sigma, camera1_from_world, map.points);
   if (!WellDetermined(uncertainty, options_)) {
     last_failure_ = "the refined motion is undetermined";
+    if (uncertainty) {
+      M2S_LOG(kDebug) << "initialisation with frames " << reference_->seq << " and " << seq
+                      << " refused after adjustment: rotation sigma "
+                      << RadToDeg(uncertainty->rotation_rad) << " deg, direction sigma "
+                      << RadToDeg(uncertainty->direction_rad) << " deg";
+    }
     next_attempt_time_ = timestamp + kMaxInitRetryDelayS;
     if (frames_since_reference_ > options_.max_reference_age) set_reference();
     keep_frame();
     return std::nullopt;
   }
+  // A pair of views can hold several minima, and the one RANSAC's motion leads to need not be
+  // the lowest: every shared feature (those RANSAC's bound left out too, whose absence biases
+  // the cost towards RANSAC's own motion) is adjusted from the gated motion and from every
+  // motion the estimators proposed. A minimum lower by more than the chi-square margin takes
+  // the place of the gated one, its motion the start of the reconstruction's points' adjustment
+  // (docs/design/two_view_initialisation.md, item 6).
+  const auto adjust_start = std::chrono::steady_clock::now();
+  std::optional<TwoViewAdjustment> best = AdjustFromEveryStart(
+      model_, ba, reference_->features, features, camera1_from_world,
+      SharedIds(reference_->features, features, kMaxStartPoints), two_view->candidate_motions);
+  const double adjust_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - adjust_start)
+          .count();
+  if (best && !best->from_start) {
+    BaProblem again =
+        TwoViewProblem(model_.camera, reference_->features, features,
+                       best->problem.keyframes[1].camera_from_world, map.point_ids, {});
+    const BundleAdjustmentResult again_result = BundleAdjust(model_.camera, ba, &again);
+    std::vector<VertexId> ids;
+    std::vector<Eigen::Vector3d> points;
+    if (again_result.success) AdjustedPoints(again, again_result, &ids, &points);
+    if (static_cast<int>(points.size()) >= options_.min_points) {
+      camera1_from_world = again.keyframes[1].camera_from_world;
+      map.point_ids = std::move(ids);
+      map.points = std::move(points);
+    }
+  }
   if (static_cast<int>(map.points.size()) < options_.min_points) {
     last_failure_ = "too few points after bundle adjustment";
+    M2S_LOG(kDebug) << "initialisation with frames " << reference_->seq << " and " << seq << ": "
+                    << map.points.size() << " points after the bundle adjustment";
     set_reference();
     return std::nullopt;
   }
@@ -151,9 +314,10 @@ std::optional<InitialMap> Initializer::Process(int64_t seq, double timestamp,
   M2S_LOG(kInfo) << "initialised from frames " << map.first.seq << " and " << seq << " with "
                  << map.points.size() << " points ("
                  << (map.used_homography ? "homography" : "essential") << ", median parallax "
-                 << two_view->median_parallax_deg << " deg); " << map.inbetween.size() << " of "
-                 << kept_frames_.size() << " frames between them solved in " << inbetween_ms
-                 << " ms";
+                 << two_view->median_parallax_deg << " deg; " << (best ? best->adjustments : 0)
+                 << " starts adjusted in " << adjust_ms << " ms); " << map.inbetween.size()
+                 << " of " << kept_frames_.size() << " frames between them solved in "
+                 << inbetween_ms << " ms";
   reference_.reset();
   kept_frames_.clear();
   second_opinion_refusals_ = 0;

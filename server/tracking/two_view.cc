@@ -31,7 +31,6 @@ constexpr double kSecondOpinionSigmaFraction = 0.7;
 constexpr double kDistinctSigmas = 2.0;
 // Chi-square, 5 degrees of freedom (a relative motion), 99.9 %: a second motion whose cost is
 // within this of the best one's fits the views as well.
-constexpr double kChi2FiveDof999 = 20.52;
 
 double DegToRad(double deg) { return deg * M_PI / 180.0; }
 double RadToDeg(double rad) { return rad * 180.0 / M_PI; }
@@ -415,6 +414,11 @@ std::optional<TwoViewReconstruction> ReconstructTwoViewUnguarded(
           << RadToDeg(uncertainty->direction_rad) << " deg)";
     }
     return fail(RefusalKind::kWeakGeometry, why.str());
+  }
+  for (const Motions& motions : {motions_of(true), motions_of(false), other_estimates()}) {
+    for (const auto& [r, t] : motions) {
+      if (t.norm() > 1e-12) out.candidate_motions.emplace_back(r, t.normalized());
+    }
   }
   return out;
 }

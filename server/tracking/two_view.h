@@ -23,6 +23,10 @@ struct TwoViewReconstruction {
   std::vector<Eigen::Vector3d> points;  // camera 0 frame
   double median_parallax_deg = 0.0;
   bool used_homography = false;
+  // Every motion the estimators proposed (the homography's decompositions, the essential
+  // matrices' of RANSAC and of the second opinions' estimators), the translations unit length:
+  // the initialiser adjusts the views from each too (a pair of views can hold several minima).
+  std::vector<Pose3> candidate_motions;
 };
 
 // Why two views were not reconstructed: the kind decides what the initialiser does next, the

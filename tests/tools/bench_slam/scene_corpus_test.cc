@@ -169,6 +169,15 @@ TEST_F(SceneRunTest, DISABLED_HeadNoisy) { Run("head", true, false, {30, 0, 0.00
 // Fails today: no two frames of the 121 pass the two-view initialisation's checks.
 TEST_F(SceneRunTest, DISABLED_DroneNoisy) { Run("drone", true, false, {30, 0, 0.005, 0.025}); }
 
+// The 20 s flight: its second map (frames 540 and 561) is adjusted into the minimum that USAC's
+// motion leads to, 1.0 degree of rotation from the truth, instead of RANSAC's at 5.6 degrees
+// (docs/design/two_view_initialisation.md, item 6). Measured: ATE RMSE 14.1 mm, max 59.3 mm,
+// 269 frames without a pose (a first map only at frame 382, on forward flight); with RANSAC's
+// minimum, 112 mm and 475 mm.
+TEST_F(SceneRunTest, DroneNoisyTakesTheLowestTwoViewMinimum) {
+  Run("drone", true, false, {0, 280, 0.03, 0.12}, /*duration_s=*/20.0);
+}
+
 // Fails today: no two frames of the 121 pass the two-view initialisation's checks.
 TEST_F(SceneRunTest, DISABLED_HeadNoisyOcclusion) {
   Run("head", true, true, {30, 0, 0.005, 0.025});
