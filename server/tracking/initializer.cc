@@ -34,6 +34,10 @@ constexpr double kSameStartDeg = 0.5;
 // AdjustFromEveryStart compares the starts on an even subset of at most this many of the shared
 // features (an initialisation stalls tracking for the adjustments' time).
 constexpr size_t kMaxStartPoints = 300;
+// Residuals of the gated adjustment below this fraction of pixel_sigma (RMS) are exact data:
+// the other starts are not adjusted (they would stall tracking for nothing; the real-time demo
+// skipped frames at its initialisation).
+constexpr double kExactRmseFraction = 0.1;
 
 double RadToDeg(double rad) { return rad * 180.0 / M_PI; }
 
@@ -270,10 +274,14 @@ std::optional<InitialMap> Initializer::Process(int64_t seq, double timestamp,
   // motion the estimators proposed. A minimum lower by more than the chi-square margin takes
   // the place of the gated one, its motion the start of the reconstruction's points' adjustment
   // (docs/design/two_view_initialisation.md, item 6).
+  // Exact data (residuals far below the noise) has its minimum at the truth: no other start.
   const auto adjust_start = std::chrono::steady_clock::now();
-  std::optional<TwoViewAdjustment> best = AdjustFromEveryStart(
-      model_, ba, reference_->features, features, camera1_from_world,
-      SharedIds(reference_->features, features, kMaxStartPoints), two_view->candidate_motions);
+  std::optional<TwoViewAdjustment> best;
+  if (result.final_rmse_px > kExactRmseFraction * model_.pixel_sigma) {
+    best = AdjustFromEveryStart(model_, ba, reference_->features, features, camera1_from_world,
+                                SharedIds(reference_->features, features, kMaxStartPoints),
+                                two_view->candidate_motions);
+  }
   const double adjust_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - adjust_start)
           .count();
