@@ -29,8 +29,6 @@ constexpr double kSecondOpinionSigmaFraction = 0.7;
 // Two candidate motions are the same solution when they differ by less than this many times the
 // largest standard deviations the motion may have (InitializerOptions::max_*_sigma_deg).
 constexpr double kDistinctSigmas = 2.0;
-// Chi-square, 5 degrees of freedom (a relative motion), 99.9 %: a second motion whose cost is
-// within this of the best one's fits the views as well.
 
 double DegToRad(double deg) { return deg * M_PI / 180.0; }
 double RadToDeg(double rad) { return rad * 180.0 / M_PI; }
