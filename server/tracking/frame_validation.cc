@@ -13,6 +13,22 @@ Status Reject(DropReason reason, const std::string& detail) {
 
 }  // namespace
 
+std::vector<std::pair<size_t, size_t>> SharedIndices(const SortedFeatures& a,
+                                                     const SortedFeatures& b) {
+  std::vector<std::pair<size_t, size_t>> shared;
+  size_t i = 0, j = 0;
+  while (i < a.size() && j < b.size()) {
+    if (a.ids[i] < b.ids[j]) {
+      ++i;
+    } else if (b.ids[j] < a.ids[i]) {
+      ++j;
+    } else {
+      shared.emplace_back(i++, j++);
+    }
+  }
+  return shared;
+}
+
 Status FrameValidator::Validate(const Frame& frame, SortedFeatures* out) {
   const size_t n = frame.features.size();
   if (n == 0) return Reject(DropReason::kEmptyFrame, "no features");

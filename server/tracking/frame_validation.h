@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -28,6 +29,10 @@ struct SortedFeatures {
   std::vector<Eigen::Vector2d> uvs;
   size_t size() const { return ids.size(); }
 };
+
+// The positions (in a, in b) of the ids two frames share, ascending by id.
+std::vector<std::pair<size_t, size_t>> SharedIndices(const SortedFeatures& a,
+                                                     const SortedFeatures& b);
 
 class FrameValidator {
  public:

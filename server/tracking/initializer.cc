@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <chrono>
-#include <iterator>
 #include <unordered_map>
 
 #include "m2s/common/logging.h"
@@ -38,8 +37,6 @@ constexpr size_t kMaxStartPoints = 300;
 // the other starts are not adjusted (they would stall tracking for nothing; the real-time demo
 // skipped frames at its initialisation).
 constexpr double kExactRmseFraction = 0.1;
-
-double RadToDeg(double rad) { return rad * 180.0 / M_PI; }
 
 // The two-view bundle adjustment problem of an initialisation: view 0 fixed at the origin,
 // view 1 at `camera1_from_camera0`, a point for each of `ids` (sorted, shared by the views) at
@@ -77,11 +74,10 @@ BaProblem TwoViewProblem(const Camera& camera, const SortedFeatures& view0,
 // The ids two views share, sorted: an even subset of at most `max_count` of them.
 std::vector<VertexId> SharedIds(const SortedFeatures& a, const SortedFeatures& b,
                                 size_t max_count) {
-  std::vector<VertexId> shared;
-  std::set_intersection(a.ids.begin(), a.ids.end(), b.ids.begin(), b.ids.end(),
-                        std::back_inserter(shared));
+  const std::vector<std::pair<size_t, size_t>> shared = SharedIndices(a, b);
   std::vector<VertexId> out;
-  for (const size_t i : EvenlySpacedIndices(shared.size(), max_count)) out.push_back(shared[i]);
+  for (const size_t k : EvenlySpacedIndices(shared.size(), max_count))
+    out.push_back(a.ids[shared[k].first]);
   return out;
 }
 
@@ -280,7 +276,7 @@ std::optional<InitialMap> Initializer::Process(int64_t seq, double timestamp,
   if (result.final_rmse_px > kExactRmseFraction * model_.pixel_sigma) {
     best = AdjustFromEveryStart(model_, ba, reference_->features, features, camera1_from_world,
                                 SharedIds(reference_->features, features, kMaxStartPoints),
-                                two_view->candidate_motions);
+                                two_view->candidate_motions());
   }
   const double adjust_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - adjust_start)

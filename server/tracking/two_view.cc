@@ -30,39 +30,24 @@ constexpr double kSecondOpinionSigmaFraction = 0.7;
 // largest standard deviations the motion may have (InitializerOptions::max_*_sigma_deg).
 constexpr double kDistinctSigmas = 2.0;
 
-double DegToRad(double deg) { return deg * M_PI / 180.0; }
-double RadToDeg(double rad) { return rad * 180.0 / M_PI; }
-
 struct Matches {
   std::vector<VertexId> ids;
   std::vector<cv::Point2d> p0, p1;
 };
 
+// The features two views share, a subset of kMaxMatches of them evenly spaced by id when there
+// are more.
 Matches Intersect(const SortedFeatures& a, const SortedFeatures& b) {
+  const std::vector<std::pair<size_t, size_t>> shared = SharedIndices(a, b);
+  const bool subsample = shared.size() > static_cast<size_t>(kMaxMatches);
+  const size_t count = subsample ? static_cast<size_t>(kMaxMatches) : shared.size();
+  const double step = subsample ? static_cast<double>(shared.size()) / kMaxMatches : 1.0;
   Matches m;
-  size_t i = 0, j = 0;
-  while (i < a.size() && j < b.size()) {
-    if (a.ids[i] < b.ids[j]) {
-      ++i;
-    } else if (b.ids[j] < a.ids[i]) {
-      ++j;
-    } else {
-      m.ids.push_back(a.ids[i]);
-      m.p0.emplace_back(a.uvs[i].x(), a.uvs[i].y());
-      m.p1.emplace_back(b.uvs[j].x(), b.uvs[j].y());
-      ++i, ++j;
-    }
-  }
-  if (m.ids.size() > static_cast<size_t>(kMaxMatches)) {
-    Matches s;
-    const double step = static_cast<double>(m.ids.size()) / kMaxMatches;
-    for (int k = 0; k < kMaxMatches; ++k) {
-      const size_t idx = static_cast<size_t>(k * step);
-      s.ids.push_back(m.ids[idx]);
-      s.p0.push_back(m.p0[idx]);
-      s.p1.push_back(m.p1[idx]);
-    }
-    return s;
+  for (size_t k = 0; k < count; ++k) {
+    const auto [i, j] = shared[static_cast<size_t>(static_cast<double>(k) * step)];
+    m.ids.push_back(a.ids[i]);
+    m.p0.emplace_back(a.uvs[i].x(), a.uvs[i].y());
+    m.p1.emplace_back(b.uvs[j].x(), b.uvs[j].y());
   }
   return m;
 }
@@ -172,6 +157,25 @@ Motions EssentialMotions(const cv::Mat& e) {
   return {{r1, t}, {r1, -t}, {r2, t}, {r2, -t}};
 }
 
+// Second opinions: the motions of the essential matrices of two other robust estimators (least
+// median of squares; OpenCV's USAC with local optimisation). Where the views leave a valley of
+// motions that fit them within the noise, each estimator settles somewhere in it, often far
+// from RANSAC's pick (a hand-held camera circling a compact object: 6.2 degrees of parallax
+// picked where the truth has 1.8, and a 0.9-degree motion fitting as well).
+Motions SecondOpinionMotions(const Matches& m, const cv::Mat& k_cv, double sigma) {
+  Motions opinions;
+  for (const int method : {cv::LMEDS, cv::USAC_ACCURATE}) {
+    cv::Mat mask;
+    const cv::Mat es = cv::findEssentialMat(m.p0, m.p1, k_cv, method, 0.999, sigma, mask);
+    // Several solutions come stacked, 3 rows each.
+    for (int row = 0; row + 3 <= es.rows && es.cols == 3; row += 3) {
+      const auto motions = EssentialMotions(es.rowRange(row, row + 3));
+      opinions.insert(opinions.end(), motions.begin(), motions.end());
+    }
+  }
+  return opinions;
+}
+
 // ReconstructTwoView without the boundary that turns OpenCV's exceptions into a refusal.
 std::optional<TwoViewReconstruction> ReconstructTwoViewUnguarded(
     const MeasurementModel& model, const InitializerOptions& options, const SortedFeatures& view0,
@@ -190,7 +194,7 @@ std::optional<TwoViewReconstruction> ReconstructTwoViewUnguarded(
   // chance of enough parallax (rotation can only add image motion, not parallax).
   std::vector<double> flow(n);
   for (int i = 0; i < n; ++i) flow[i] = cv::norm(m.p1[i] - m.p0[i]);
-  const double min_flow = 0.25 * model.camera.fx * options.min_parallax_deg * M_PI / 180.0;
+  const double min_flow = 0.25 * model.camera.fx * DegToRad(options.min_parallax_deg);
   if (Median(std::move(flow)) < min_flow)
     return fail(RefusalKind::kTooLittleMotion, "too little image motion");
 
@@ -239,26 +243,11 @@ std::optional<TwoViewReconstruction> ReconstructTwoViewUnguarded(
     }
     return motions;
   };
-  // Second opinions: the essential matrices of two other robust estimators (least median of
-  // squares; OpenCV's USAC with local optimisation), decomposed. Where the views leave a valley
-  // of motions that fit them within the noise, each estimator settles somewhere in it, often
-  // far from RANSAC's pick (a hand-held camera circling a compact object: 6.2 degrees of
-  // parallax picked where the truth has 1.8, and a 0.9-degree motion fitting as well).
-  Motions opinions;
-  bool opinions_done = false;
+  // Second opinions (SecondOpinionMotions), asked at most once.
+  std::optional<Motions> opinions;
   auto other_estimates = [&]() -> const Motions& {
-    if (opinions_done) return opinions;
-    opinions_done = true;
-    for (const int method : {cv::LMEDS, cv::USAC_ACCURATE}) {
-      cv::Mat mask;
-      const cv::Mat es = cv::findEssentialMat(m.p0, m.p1, k_cv, method, 0.999, sigma, mask);
-      // Several solutions come stacked, 3 rows each.
-      for (int row = 0; row + 3 <= es.rows && es.cols == 3; row += 3) {
-        const auto motions = EssentialMotions(es.rowRange(row, row + 3));
-        opinions.insert(opinions.end(), motions.begin(), motions.end());
-      }
-    }
-    return opinions;
+    if (!opinions) opinions = SecondOpinionMotions(m, k_cv, sigma);
+    return *opinions;
   };
   // Motions of one model, checked by triangulation; the best must be unique, among the motions
   // of both models and the second opinions. When the preferred model is ambiguous (a homography
@@ -413,11 +402,26 @@ std::optional<TwoViewReconstruction> ReconstructTwoViewUnguarded(
     }
     return fail(RefusalKind::kWeakGeometry, why.str());
   }
-  for (const Motions& motions : {motions_of(true), motions_of(false), other_estimates()}) {
-    for (const auto& [r, t] : motions) {
-      if (t.norm() > 1e-12) out.candidate_motions.emplace_back(r, t.normalized());
+  // The candidates, the second opinions asked only when the initialiser needs them (their
+  // estimators cost as much as the rest of the reconstruction).
+  Motions proposed = motions_of(true);
+  const Motions essential = motions_of(false);
+  proposed.insert(proposed.end(), essential.begin(), essential.end());
+  out.candidate_motions = [proposed = std::move(proposed), opinions = std::move(opinions), m, k_cv,
+                           sigma]() {
+    Motions all = proposed;
+    try {
+      const Motions others = opinions ? *opinions : SecondOpinionMotions(m, k_cv, sigma);
+      all.insert(all.end(), others.begin(), others.end());
+    } catch (const cv::Exception& e) {
+      M2S_LOG(kWarning) << "two-view candidate motions: OpenCV error: " << e.what();
     }
-  }
+    std::vector<Pose3> motions;
+    for (const auto& [r, t] : all) {
+      if (t.norm() > 1e-12) motions.emplace_back(r, t.normalized());
+    }
+    return motions;
+  };
   return out;
 }
 

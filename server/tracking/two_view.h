@@ -7,6 +7,7 @@
 //   auto two_view = ReconstructTwoView(model, options.initializer, view0, view1, &refusal);
 #pragma once
 
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -26,7 +27,9 @@ struct TwoViewReconstruction {
   // Every motion the estimators proposed (the homography's decompositions, the essential
   // matrices' of RANSAC and of the second opinions' estimators), the translations unit length:
   // the initialiser adjusts the views from each too (a pair of views can hold several minima).
-  std::vector<Pose3> candidate_motions;
+  // Computed when called: the second opinions' estimators may not have run yet, and they cost
+  // as much as the reconstruction (exact data never needs them).
+  std::function<std::vector<Pose3>()> candidate_motions;
 };
 
 // Why two views were not reconstructed: the kind decides what the initialiser does next, the

@@ -1,5 +1,6 @@
 // Small numeric helpers used across the tree: evenly spaced subsamples, medians and
-// percentiles, the chi-square bounds of the outlier tests, and a look-at camera pose.
+// percentiles, the chi-square bounds of the outlier tests, degrees and radians, and a look-at
+// camera pose.
 //
 // Pure functions of their arguments; thread-safe.
 //
@@ -22,6 +23,10 @@ inline constexpr double kChi2OneDof95 = 3.841;    // 95 %, 1 dof (distance to an
 inline constexpr double kChi2TwoDof95 = 5.991;    // 95 %, 2 dof (reprojection, transfer error)
 inline constexpr double kChi2FiveDof999 = 20.52;  // 99.9 %, 5 dof (a two-view motion)
 inline constexpr double kChi2SixDof999 = 22.46;   // 99.9 %, 6 dof (a pose)
+
+// Angles: degrees to radians and back.
+inline constexpr double DegToRad(double deg) { return deg * (3.14159265358979323846 / 180.0); }
+inline constexpr double RadToDeg(double rad) { return rad * (180.0 / 3.14159265358979323846); }
 
 // How EvenlySpacedIndices turns a spaced position into an index.
 enum class IndexRounding { kDown, kUp };
