@@ -1,6 +1,7 @@
+#include "m2s/slam/options.h"
+
 #include <cmath>
 
-#include "m2s/slam/options.h"
 #include "m2s/slam/system.h"
 
 namespace m2s::slam {
@@ -42,6 +43,9 @@ Status InitializerOptions::Check() const {
   }
   if (!Positive(max_direction_sigma_deg)) {
     return Fail(kName, "max_direction_sigma_deg must be positive");
+  }
+  if (!std::isfinite(more_views_after_s)) {
+    return Fail(kName, "more_views_after_s must be finite");
   }
   return Status::Ok();
 }

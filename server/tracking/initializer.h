@@ -12,6 +12,9 @@
 // InitializerOptions' bounds, before and after the bundle adjustment. Bunched or distant points
 // fail that with exact data too (TwoViewRefusal::Kind::kWeakGeometry), and the initialiser
 // waits for more baseline.
+// Views that keep refusing for weak geometry (InitializerOptions::more_views_after_s) are
+// given to more views: kept frames between the two decide among the motions the refusal
+// proposes, the motion gated over every view (FromMoreViews).
 // Once the map exists, the frames between its two views are solved on it too (InitialMap::
 // inbetween): they get poses instead of staying without one.
 // A refused attempt costs milliseconds (two RANSACs): after one, the next attempt waits until the
@@ -78,6 +81,7 @@ class Initializer {
     reference_.reset(), frames_since_reference_ = 0, next_attempt_time_.reset();
     kept_frames_.clear();
     second_opinion_refusals_ = 0;
+    refused_since_.reset();
   }
   // Starts over from frames seen before those Process() gets, in capture order, without an
   // attempt (the lost frames before a new map starts): one of them becomes the reference
@@ -98,6 +102,26 @@ class Initializer {
   MeasurementModel model_;
   InitializerOptions options_;
   int num_ba_threads_;
+  // The initial map from more views than two, when the two views fit several motions (a
+  // plane's twins) or leave the motion undetermined (`refused` says which): kept frames between
+  // the reference and this frame (`timestamp`, `features`) are posed on the two views'
+  // adjustment from each of `starts` and every view adjusted together; the lowest minimum,
+  // distinct from the others, and its motion determined by every view
+  // (MultiViewMotionUncertainty within InitializerOptions' bounds), makes the map. nullopt
+  // otherwise.
+  std::optional<InitialMap> FromMoreViews(int64_t seq, double timestamp,
+                                          const SortedFeatures& features,
+                                          const std::vector<Pose3>& starts,
+                                          const std::string& refused);
+  // Whether FromMoreViews may be asked at capture time `timestamp`
+  // (InitializerOptions::more_views_after_s).
+  bool MoreViewsDue(double timestamp) const;
+  // The initial map of the reference and this frame from the motion and points (camera 0,
+  // any scale): scaled to median depth 1, the kept frames solved on it; logs `how`, resets.
+  InitialMap Complete(int64_t seq, double timestamp, const SortedFeatures& features,
+                      const Pose3& camera1_from_world, std::vector<VertexId> ids,
+                      std::vector<Eigen::Vector3d> points, bool used_homography,
+                      const std::string& how);
   // Solves the kept frames on `map` (InitialMap::inbetween).
   void SolveInbetween(InitialMap* map) const;
   void KeepFrame(int64_t seq, double timestamp, const SortedFeatures& features);
@@ -109,6 +133,8 @@ class Initializer {
   std::vector<InitialFrame> kept_frames_;
   std::optional<double> next_attempt_time_;  // no full attempt before this capture time
   int second_opinion_refusals_ = 0;          // since the last map or Reset
+  std::optional<double> refused_since_;      // the first refused attempt's capture time, since
+                                             // the last map or Reset
   std::string last_failure_;
 };
 

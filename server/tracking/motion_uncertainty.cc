@@ -78,6 +78,77 @@ std::optional<MotionUncertainty> TwoViewMotionUncertainty(
   return out;
 }
 
+std::optional<MotionUncertainty> MultiViewMotionUncertainty(
+    const Camera& camera, double pixel_sigma, const std::vector<Pose3>& views_from_camera0,
+    const std::vector<Eigen::Vector3d>& points_camera0,
+    const std::vector<std::pair<int, int>>& observations) {
+  M2S_CHECK(views_from_camera0.size() >= 2);
+  const Eigen::Vector3d t = views_from_camera0[1].translation();
+  const double baseline = t.norm();
+  if (!(baseline > 0.0)) return std::nullopt;
+  // Parameters: view 1's rotation (left perturbation) and translation direction (two angles
+  // across it, its length the scale), then each further view's rotation and translation.
+  const Eigen::Vector3d e1 = t.unitOrthogonal();
+  const Eigen::Vector3d e2 = t.normalized().cross(e1);
+  const int num_views = static_cast<int>(views_from_camera0.size());
+  const int num_params = 5 + 6 * (num_views - 2);
+  auto offset = [](int view) { return view == 1 ? 0 : 5 + 6 * (view - 2); };
+  std::vector<std::vector<int>> seen_by(points_camera0.size());
+  for (const auto& [view, point] : observations) {
+    M2S_CHECK(view >= 0 && view < num_views && point >= 0 &&
+              static_cast<size_t>(point) < points_camera0.size());
+    seen_by[static_cast<size_t>(point)].push_back(view);
+  }
+  // The reduced camera system: the points eliminated one by one (Schur complement).
+  Eigen::MatrixXd information = Eigen::MatrixXd::Zero(num_params, num_params);
+  for (size_t i = 0; i < points_camera0.size(); ++i) {
+    if (seen_by[i].size() < 2) continue;
+    Eigen::Matrix3d h_ll = Eigen::Matrix3d::Zero();
+    Eigen::MatrixXd h_cl = Eigen::MatrixXd::Zero(num_params, 3);
+    Eigen::MatrixXd h_cc = Eigen::MatrixXd::Zero(num_params, num_params);
+    for (const int view : seen_by[i]) {
+      const Eigen::Matrix3d r = views_from_camera0[static_cast<size_t>(view)].RotationMatrix();
+      const Eigen::Vector3d rx = r * points_camera0[i];
+      const Eigen::Vector3d p = rx + views_from_camera0[static_cast<size_t>(view)].translation();
+      if (!(p.z() > 0.0)) continue;
+      const Eigen::Matrix<double, 2, 3> projection = ProjectionJacobian(camera, p);
+      const Eigen::Matrix<double, 2, 3> b = projection * r;
+      h_ll += b.transpose() * b;
+      if (view == 0) continue;
+      Eigen::MatrixXd dp_dview(3, view == 1 ? 5 : 6);
+      if (view == 1) {
+        dp_dview << -Hat(rx), baseline * e1, baseline * e2;
+      } else {
+        dp_dview << -Hat(rx), Eigen::Matrix3d::Identity();
+      }
+      const Eigen::MatrixXd a = projection * dp_dview;
+      const int o = offset(view);
+      const auto width = static_cast<Eigen::Index>(a.cols());
+      h_cc.block(o, o, width, width) += a.transpose() * a;
+      h_cl.block(o, 0, width, 3) += a.transpose() * b;
+    }
+    Eigen::LDLT<Eigen::Matrix3d> h_ll_ldlt(h_ll);
+    if (h_ll_ldlt.info() != Eigen::Success || !(h_ll.determinant() > 0.0)) continue;
+    information += h_cc - h_cl * h_ll_ldlt.solve(h_cl.transpose());
+  }
+  information /= pixel_sigma * pixel_sigma;
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(information);
+  if (eig.info() != Eigen::Success ||
+      !(eig.eigenvalues().minCoeff() > 1e-12 * eig.eigenvalues().maxCoeff())) {
+    return MotionUncertainty{INFINITY, INFINITY};
+  }
+  const Eigen::MatrixXd covariance = eig.eigenvectors() *
+                                     eig.eigenvalues().cwiseInverse().asDiagonal() *
+                                     eig.eigenvectors().transpose();
+  MotionUncertainty out;
+  out.rotation_rad = LargestSigma(covariance.topLeftCorner<3, 3>());
+  out.direction_rad = std::sqrt(
+      std::max(0.0, Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(covariance.block<2, 2>(3, 3))
+                        .eigenvalues()
+                        .maxCoeff()));
+  return out;
+}
+
 std::optional<Eigen::Matrix3d> PoseCentreCovariance(
     const Camera& camera, double pixel_sigma, const Pose3& camera_from_world,
     const std::vector<Eigen::Vector3d>& points_world, const std::vector<double>& point_sigmas) {

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <optional>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -27,6 +28,16 @@ struct MotionUncertainty {
 std::optional<MotionUncertainty> TwoViewMotionUncertainty(
     const Camera& camera, double pixel_sigma, const Pose3& camera1_from_camera0,
     const std::vector<Eigen::Vector3d>& points_camera0);
+
+// The same standard deviations for the motion of view 1 relative to view 0 when more views
+// see the points: `views_from_camera0[0]` (fixed) and `[1]` are the two views, the others'
+// poses unknown too (nuisance, like the points); `observations` lists which view sees which
+// point, (view index, point index). Points seen by fewer than two views add nothing. nullopt
+// without translation in view 1; infinities where the views leave the motion unconstrained.
+std::optional<MotionUncertainty> MultiViewMotionUncertainty(
+    const Camera& camera, double pixel_sigma, const std::vector<Pose3>& views_from_camera0,
+    const std::vector<Eigen::Vector3d>& points_camera0,
+    const std::vector<std::pair<int, int>>& observations);
 
 // Covariance (world units squared) of a camera's centre solved from known points, its rotation
 // unknown too, for image noise `pixel_sigma` on their projections: the position block of the

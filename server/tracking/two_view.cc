@@ -145,6 +145,13 @@ MotionCheck CheckMotion(const MeasurementModel& model, const Matches& m,
 
 using Motions = std::vector<std::pair<Eigen::Matrix3d, Eigen::Vector3d>>;  // rotation, t
 
+// `motions` with a translation, the translations made unit length, appended to `out`.
+void AppendUnitMotions(const Motions& motions, std::vector<Pose3>* out) {
+  for (const auto& [r, t] : motions) {
+    if (t.norm() > 1e-12) out->emplace_back(r, t.normalized());
+  }
+}
+
 // The four motions (two rotations, the translation's two signs) of an essential matrix.
 Motions EssentialMotions(const cv::Mat& e) {
   cv::Mat r1_cv, r2_cv, t_cv;
@@ -183,7 +190,7 @@ std::optional<TwoViewReconstruction> ReconstructTwoViewUnguarded(
     bool second_opinions) {
   auto fail = [refusal](RefusalKind kind, const std::string& message,
                         bool by_second_opinion = false) -> std::optional<TwoViewReconstruction> {
-    if (refusal) *refusal = {kind, message, by_second_opinion};
+    if (refusal) *refusal = {kind, message, by_second_opinion, {}};
     return std::nullopt;
   };
   if (median_parallax_deg) *median_parallax_deg = 0.0;
@@ -257,6 +264,7 @@ std::optional<TwoViewReconstruction> ReconstructTwoViewUnguarded(
     RefusalKind kind = RefusalKind::kNoModel;
     std::string reason;
     bool by_second_opinion = false;
+    std::vector<Pose3> rivals;
   };
   auto try_model = [&](bool homography, Refused* refused) -> std::optional<MotionCheck> {
     const cv::Mat& mask = homography ? h_mask : e_mask;
@@ -291,8 +299,25 @@ std::optional<TwoViewReconstruction> ReconstructTwoViewUnguarded(
               [](const auto& a, const auto& b) { return a.good > b.good; });
     if (median_parallax_deg)
       *median_parallax_deg = std::max(*median_parallax_deg, checks[0].median_parallax_deg);
+    // A refusal for weak geometry proposes the best motion, the twins and every motion of
+    // both models as starts for more views (TwoViewRefusal::rivals).
+    auto propose = [&](const std::vector<Pose3>& twins) {
+      refused->rivals = {checks[0].camera1_from_camera0};
+      refused->rivals.insert(refused->rivals.end(), twins.begin(), twins.end());
+      AppendUnitMotions(motions_of(true), &refused->rivals);
+      AppendUnitMotions(motions_of(false), &refused->rivals);
+    };
     if (checks.size() > 1 && checks[1].good > kAmbiguityRatio * checks[0].good) {
       refused->reason = "ambiguous motion (rotation only or too little parallax)";
+      // A plane's two decompositions: starts for more views, when the parallax is there.
+      if (checks[0].median_parallax_deg >= options.min_parallax_deg) {
+        std::vector<Pose3> close;
+        for (size_t i = 1; i < checks.size(); ++i) {
+          if (checks[i].good > kAmbiguityRatio * checks[0].good)
+            close.push_back(checks[i].camera1_from_camera0);
+        }
+        propose(close);
+      }
       return std::nullopt;
     }
     // A motion of the other model that differs from the best and fits these inliers about as
@@ -301,19 +326,25 @@ std::optional<TwoViewReconstruction> ReconstructTwoViewUnguarded(
     // opinion is such a solution when its rotation differs (a valley trades rotation against
     // translation; its translation direction alone may differ at low parallax).
     auto twin = [&](const Motions& others, bool rotation_only) {
-      return std::any_of(others.begin(), others.end(), [&](const auto& motion) {
-        const auto& [r, t] = motion;
-        if (t.norm() < 1e-12) return false;
+      std::vector<Pose3> twins;
+      for (const auto& [r, t] : others) {
+        if (t.norm() < 1e-12) continue;
         const Pose3 other(r, t.normalized());
         const bool distinct =
             rotation_only ? DistinctRotations(other, checks[0].camera1_from_camera0, options)
                           : DistinctMotions(other, checks[0].camera1_from_camera0, options);
-        return distinct && CheckMotion(model, m, subset, r, t.normalized()).cost - checks[0].cost <
-                               kChi2FiveDof999;
-      });
+        if (distinct && CheckMotion(model, m, subset, r, t.normalized()).cost - checks[0].cost <
+                            kChi2FiveDof999) {
+          twins.push_back(other);
+        }
+      }
+      if (twins.empty()) return false;
+      propose(twins);
+      return true;
     };
     if (twin(motions_of(!homography), false)) {
-      *refused = {RefusalKind::kWeakGeometry, "two distinct motions explain the views"};
+      refused->kind = RefusalKind::kWeakGeometry;
+      refused->reason = "two distinct motions explain the views";
       return std::nullopt;
     }
     // Association is by id, so nearly every match is a true correspondence: a motion that
@@ -354,8 +385,9 @@ std::optional<TwoViewReconstruction> ReconstructTwoViewUnguarded(
           u->rotation_rad >
               kSecondOpinionSigmaFraction * DegToRad(options.max_rotation_sigma_deg) &&
           twin(other_estimates(), true)) {
-        *refused = {RefusalKind::kWeakGeometry,
-                    "another estimator's motion explains the views as well", true};
+        refused->kind = RefusalKind::kWeakGeometry;
+        refused->reason = "another estimator's motion explains the views as well";
+        refused->by_second_opinion = true;
         return std::nullopt;
       }
     }
@@ -371,7 +403,9 @@ std::optional<TwoViewReconstruction> ReconstructTwoViewUnguarded(
   if (!chosen) {
     const Refused& refused =
         refused_other.kind == RefusalKind::kWeakGeometry ? refused_other : refused_preferred;
-    return fail(refused.kind, refused.reason, refused.by_second_opinion);
+    fail(refused.kind, refused.reason, refused.by_second_opinion);
+    if (refusal) refusal->rivals = refused.rivals;
+    return std::nullopt;
   }
   const MotionCheck& best = *chosen;
 
@@ -400,25 +434,26 @@ std::optional<TwoViewReconstruction> ReconstructTwoViewUnguarded(
       why << " (rotation sigma " << RadToDeg(uncertainty->rotation_rad) << " deg, direction sigma "
           << RadToDeg(uncertainty->direction_rad) << " deg)";
     }
-    return fail(RefusalKind::kWeakGeometry, why.str());
+    fail(RefusalKind::kWeakGeometry, why.str());
+    if (refusal) {
+      refusal->rivals = {out.camera1_from_camera0};
+      AppendUnitMotions(motions_of(true), &refusal->rivals);
+      AppendUnitMotions(motions_of(false), &refusal->rivals);
+    }
+    return std::nullopt;
   }
   // The candidates, the second opinions asked only when the initialiser needs them (their
   // estimators cost as much as the rest of the reconstruction).
-  Motions proposed = motions_of(true);
-  const Motions essential = motions_of(false);
-  proposed.insert(proposed.end(), essential.begin(), essential.end());
+  std::vector<Pose3> proposed;
+  AppendUnitMotions(motions_of(true), &proposed);
+  AppendUnitMotions(motions_of(false), &proposed);
   out.candidate_motions = [proposed = std::move(proposed), opinions = std::move(opinions), m, k_cv,
                            sigma]() {
-    Motions all = proposed;
+    std::vector<Pose3> motions = proposed;
     try {
-      const Motions others = opinions ? *opinions : SecondOpinionMotions(m, k_cv, sigma);
-      all.insert(all.end(), others.begin(), others.end());
+      AppendUnitMotions(opinions ? *opinions : SecondOpinionMotions(m, k_cv, sigma), &motions);
     } catch (const cv::Exception& e) {
       M2S_LOG(kWarning) << "two-view candidate motions: OpenCV error: " << e.what();
-    }
-    std::vector<Pose3> motions;
-    for (const auto& [r, t] : all) {
-      if (t.norm() > 1e-12) motions.emplace_back(r, t.normalized());
     }
     return motions;
   };
@@ -442,7 +477,8 @@ std::optional<TwoViewReconstruction> ReconstructTwoView(
   } catch (const cv::Exception& e) {
     // Degenerate input (OpenCV asserts on it): a refused attempt, never a thrown frame.
     M2S_LOG(kWarning) << "two-view reconstruction: OpenCV error: " << e.what();
-    if (refusal) *refusal = {RefusalKind::kSolverError, std::string("OpenCV error: ") + e.what()};
+    if (refusal)
+      *refusal = {RefusalKind::kSolverError, std::string("OpenCV error: ") + e.what(), false, {}};
     return std::nullopt;
   }
 }

@@ -46,6 +46,10 @@ struct TwoViewRefusal {
   Kind kind = Kind::kNoModel;
   std::string message;
   bool by_second_opinion = false;  // a kWeakGeometry twin found by another estimator
+  // For a kWeakGeometry refusal, the motions that explain the views about equally well (a
+  // plane's twins), or the one motion they leave undetermined, the best first; the
+  // translations unit length. More views can decide (Initializer::FromMoreViews).
+  std::vector<Pose3> rivals;
 };
 
 // Two-view reconstruction from matched features (matched by id). nullopt, with the reason in

@@ -198,6 +198,8 @@ Expected<RunMetrics> RunAccuracy(const Scene& scene, const Sequence& sequence,
   if (config.feature_budget >= 0) options.feature_budget = config.feature_budget;
   if (config.init_min_parallax_deg > 0)
     options.initializer.min_parallax_deg = config.init_min_parallax_deg;
+  if (config.more_views_after_s)
+    options.initializer.more_views_after_s = *config.more_views_after_s;
   if (config.max_point_uncertainty > 0)
     options.mapper.max_point_uncertainty = config.max_point_uncertainty;
   if (config.min_constrained_points >= 0)

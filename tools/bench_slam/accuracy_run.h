@@ -6,6 +6,7 @@
 //   Expected<RunMetrics> m = RunAccuracy(scene, sequence, config);
 #pragma once
 
+#include <optional>
 #include <string>
 
 #include "m2s/common/scene.h"
@@ -21,6 +22,8 @@ struct RunConfig {
   int feature_budget = -1;  // slam::Options::feature_budget, the balanced selection of every
                             // visible vertex (-1: the library's default, 0: all)
   double init_min_parallax_deg = -1.0;  // Options::initializer.min_parallax_deg (-1: default)
+  // Options::initializer.more_views_after_s (nullopt: the library's default).
+  std::optional<double> more_views_after_s;
   double max_point_uncertainty = -1.0;  // Options::mapper.max_point_uncertainty (-1: default)
   int min_constrained_points = -1;      // Options::tracker.min_constrained_points (-1: default)
   int vertex_stride = 1;                // use only vertices with id % vertex_stride == 0

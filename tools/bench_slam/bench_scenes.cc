@@ -17,11 +17,13 @@
 //   bench_scenes ... --dump out/     # each run's aligned estimate and ground truth (TUM)
 //   bench_scenes ... --verbose       # the SLAM system's debug log (initialisation refusals)
 //   bench_scenes ... --no-refine     # final trajectory and map without System::RefineMap
+//   bench_scenes ... --more-views-after -1   # two-view initialisation only
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <iostream>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -213,6 +215,10 @@ int main(int argc, char** argv) {
                "measure the final trajectory and map without System::RefineMap() (the global "
                "bundle adjustment at the end of each run, then every frame re-solved and frames "
                "without a pose solved where the map determines them)");
+  std::optional<double> more_views_after_s;
+  app.add_option("--more-views-after", more_views_after_s,
+                 "slam::Options::initializer.more_views_after_s in seconds (negative: two-view "
+                 "initialisation only; default: the library's)");
   bool verbose = false;
   app.add_flag("--verbose", verbose,
                "log the SLAM system's debug messages (initialisation refusals, lost frames)");
@@ -224,6 +230,7 @@ int main(int argc, char** argv) {
     config.fps = fps;
     config.min_visible_for_lost = min_visible;
     config.refine_map = !no_refine;
+    config.more_views_after_s = more_views_after_s;
     config.projector_threads = 0;
     config.send_budget = m2s::slam::Options().feature_budget;  // as m2s_client sends
     nlohmann::json rows = nlohmann::json::array();
@@ -299,6 +306,7 @@ int main(int argc, char** argv) {
       config.fps = fps;
       config.min_visible_for_lost = min_visible;
       config.refine_map = !no_refine;
+      config.more_views_after_s = more_views_after_s;
       if (!RunModes(composed->scene, spec.name, motion, sequence, modes, config, dump_dir, &rows))
         return 1;
     }

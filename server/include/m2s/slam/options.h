@@ -44,6 +44,13 @@ struct InitializerOptions {
   // initialisations have at most 0.07 and 1.3 degrees.
   double max_rotation_sigma_deg = 0.5;
   double max_direction_sigma_deg = 5.0;
+  // When two-view attempts have been refused for this long (seconds of capture time since the
+  // last map or reset) for weak geometry (twin motions, an undetermined motion), kept frames
+  // between the two views may decide, the same bounds applied to the motion over every view
+  // (docs/design/two_view_initialisation.md, item 7). Sooner, they also make maps from weaker
+  // views that two views would have made a little later (scanned objects, 1 s: 3 -> 14 frames
+  // lost in the noisy head run). Negative: never.
+  double more_views_after_s = 3.0;
 
   Status Check() const;
 };
