@@ -2,19 +2,19 @@
 
 #include <algorithm>
 #include <chrono>
-#include <iterator>
 #include <sstream>
 #include <unordered_map>
 
 #include "m2s/common/logging.h"
 #include "m2s/common/numeric.h"
-#include "mapping/triangulation.h"
 #include "optimization/problems.h"
+#include "tracking/initializer_internal.h"
 #include "tracking/tracker_internal.h"
 
 namespace m2s::slam {
 namespace {
 
+using namespace initializer_internal;
 using RefusalKind = TwoViewRefusal::Kind;
 // After a refused attempt, retry when the parallax extrapolated linearly in time since the
 // reference reaches this fraction of the bound, and at least this often.
@@ -27,108 +27,10 @@ constexpr double kMaxInitRetryDelayS = 0.1;
 constexpr int kMaxSecondOpinionRefusals = 3;
 // Seed() takes as reference the earliest frame with this share of the most features.
 constexpr double kSeedReferenceShare = 0.8;
-// AdjustFromEveryStart: starts that leave more than this share of the points behind a view
-// are skipped, and so are starts this close (degrees of rotation and of translation direction)
-// to one already adjusted.
-constexpr double kMaxStartBehind = 0.2;
-constexpr double kSameStartDeg = 0.5;
-// AdjustFromEveryStart compares the starts on an even subset of at most this many of the shared
-// features (an initialisation stalls tracking for the adjustments' time).
-constexpr size_t kMaxStartPoints = 300;
 // Residuals of the gated adjustment below this fraction of pixel_sigma (RMS) are exact data:
 // the other starts are not adjusted (they would stall tracking for nothing; the real-time demo
 // skipped frames at its initialisation).
 constexpr double kExactRmseFraction = 0.1;
-// FromMoreViews: at most this many kept frames, each at least this fraction of the time
-// between the two views away from both, are the third views.
-constexpr size_t kMaxThirdViews = 3;
-constexpr double kMinThirdViewSpan = 0.25;
-// FromMoreViews: starts adjusted to minima further apart than this many times the largest
-// standard deviations the motion may have (InitializerOptions::max_*_sigma_deg) are separate
-// minima (a plane's twins: tens of degrees of translation direction apart).
-constexpr double kFarRivalSigmas = 6.0;
-
-// How far apart two motions are: degrees of rotation and of translation direction.
-struct MotionDistance {
-  double rotation_deg = 0.0;
-  double direction_deg = 0.0;
-};
-MotionDistance DistanceBetween(const Pose3& a, const Pose3& b) {
-  const double cos_direction = a.translation().normalized().dot(b.translation().normalized());
-  return {RadToDeg(a.rotation().angularDistance(b.rotation())),
-          RadToDeg(std::acos(std::clamp(cos_direction, -1.0, 1.0)))};
-}
-bool SameMotion(const Pose3& a, const Pose3& b) {
-  const MotionDistance d = DistanceBetween(a, b);
-  return d.rotation_deg < kSameStartDeg && d.direction_deg < kSameStartDeg;
-}
-
-// The two-view bundle adjustment problem of an initialisation: view 0 fixed at the origin,
-// view 1 at `camera1_from_camera0`, a point for each of `ids` (sorted, shared by the views) at
-// `points` (camera 0; parallel to `ids`), or, with `points` empty, triangulated (DLT) with that
-// motion and left out where it does not lie in front of both views.
-BaProblem TwoViewProblem(const Camera& camera, const SortedFeatures& view0,
-                         const SortedFeatures& view1, const Pose3& camera1_from_camera0,
-                         const std::vector<VertexId>& ids,
-                         const std::vector<Eigen::Vector3d>& points) {
-  BaProblem problem;
-  problem.keyframes = {{0, Pose3::Identity(), true}, {1, camera1_from_camera0, false}};
-  for (size_t k = 0; k < ids.size(); ++k) {
-    const auto uv = [&](const SortedFeatures& f) -> std::optional<Eigen::Vector2d> {
-      const auto it = std::lower_bound(f.ids.begin(), f.ids.end(), ids[k]);
-      if (it == f.ids.end() || *it != ids[k]) return std::nullopt;
-      return f.uvs[static_cast<size_t>(it - f.ids.begin())];
-    };
-    const std::optional<Eigen::Vector2d> uv0 = uv(view0), uv1 = uv(view1);
-    if (!uv0 || !uv1) continue;
-    std::optional<Eigen::Vector3d> p;
-    if (!points.empty()) {
-      p = points[k];
-    } else {
-      p = TriangulateDlt(camera, {Pose3::Identity(), camera1_from_camera0}, {*uv0, *uv1});
-      if (!p || !(p->z() > 0.0) || !((camera1_from_camera0 * *p).z() > 0.0)) continue;
-    }
-    problem.points.push_back({ids[k], *p, false});
-    const int index = static_cast<int>(problem.points.size() - 1);
-    problem.observations.push_back({0, index, *uv0});
-    problem.observations.push_back({1, index, *uv1});
-  }
-  return problem;
-}
-
-// The ids two views share, sorted: an even subset of at most `max_count` of them.
-std::vector<VertexId> SharedIds(const SortedFeatures& a, const SortedFeatures& b,
-                                size_t max_count) {
-  const std::vector<std::pair<size_t, size_t>> shared = SharedIndices(a, b);
-  std::vector<VertexId> out;
-  for (const size_t k : EvenlySpacedIndices(shared.size(), max_count))
-    out.push_back(a.ids[shared[k].first]);
-  return out;
-}
-
-// The points of an adjusted two-view problem a map takes: none of their observations an
-// outlier, finite, in front of both views.
-void AdjustedPoints(const BaProblem& problem, const BundleAdjustmentResult& result,
-                    std::vector<VertexId>* ids, std::vector<Eigen::Vector3d>* points) {
-  std::vector<bool> bad(problem.points.size(), false);
-  for (size_t o = 0; o < problem.observations.size(); ++o) {
-    if (o < result.outlier.size() && result.outlier[o])
-      bad[static_cast<size_t>(problem.observations[o].point_index)] = true;
-  }
-  const Pose3& camera1_from_world = problem.keyframes[1].camera_from_world;
-  std::vector<VertexId> out_ids;
-  std::vector<Eigen::Vector3d> out_points;
-  for (size_t i = 0; i < problem.points.size(); ++i) {
-    const BaPoint& point = problem.points[i];
-    const Eigen::Vector3d& p = point.position_world;
-    if (bad[i] || !p.allFinite() || p.z() <= 0.0 || (camera1_from_world * p).z() <= 0.0) continue;
-    out_ids.push_back(point.id);
-    out_points.push_back(p);
-  }
-  *ids = std::move(out_ids);
-  *points = std::move(out_points);
-}
-
 // AdjustFromEveryStart's result: the adjusted problem and how the adjustment went.
 struct TwoViewAdjustment {
   BaProblem problem;
@@ -165,10 +67,7 @@ std::optional<TwoViewAdjustment> AdjustFromEveryStart(
     TwoViewAdjustment a;
     a.from_start = tried.size() == 1;
     a.problem = TwoViewProblem(model.camera, view0, view1, motion, ids, {});
-    if (static_cast<double>(a.problem.points.size()) <
-        (1.0 - kMaxStartBehind) * static_cast<double>(ids.size())) {
-      return;
-    }
+    if (StartLeavesTooMany(a.problem, ids.size())) return;
     a.result = BundleAdjust(model.camera, ba, &a.problem);
     ++adjustments;
     if (!a.result.success) return;
@@ -189,48 +88,6 @@ std::optional<TwoViewAdjustment> AdjustFromEveryStart(
   return best;
 }
 
-// The bundle adjustment options of an initialisation.
-BundleAdjustmentOptions TwoViewBaOptions(const MeasurementModel& model, int num_threads) {
-  BundleAdjustmentOptions ba;
-  ba.pixel_sigma = model.pixel_sigma;
-  ba.huber_delta_px = 2.0 * model.pixel_sigma;
-  ba.max_iterations = 50;
-  ba.num_threads = num_threads;
-  return ba;
-}
-
-// The cost of an adjusted problem over a fixed set of observations, so that adjustments from
-// different starts compare: for each of `views` (keyframe ids 0, 1, ... of the problem, in
-// order) and each of `ids` it sees, the squared reprojection error capped at the chi-square
-// bound (2 dof, 95 %); the cap where the problem lacks the view or the point, or the point
-// lies behind the view.
-double CappedCost(const MeasurementModel& model, const BaProblem& problem,
-                  const std::vector<const SortedFeatures*>& views,
-                  const std::vector<VertexId>& ids) {
-  const double cap = kChi2TwoDof95 * model.pixel_sigma * model.pixel_sigma;
-  std::unordered_map<VertexId, size_t> point_index;
-  for (size_t i = 0; i < problem.points.size(); ++i) point_index.emplace(problem.points[i].id, i);
-  double cost = 0.0;
-  for (size_t v = 0; v < views.size(); ++v) {
-    const auto keyframe =
-        std::find_if(problem.keyframes.begin(), problem.keyframes.end(),
-                     [&](const BaKeyframe& k) { return k.id == static_cast<KeyframeId>(v); });
-    for (const auto& [i, k] : SharedIndices(*views[v], SortedFeatures{ids, {}})) {
-      (void)k;
-      const auto point = point_index.find(views[v]->ids[i]);
-      if (keyframe == problem.keyframes.end() || point == point_index.end()) {
-        cost += cap;
-        continue;
-      }
-      const Eigen::Vector3d p =
-          keyframe->camera_from_world * problem.points[point->second].position_world;
-      cost += p.z() > 0.0
-                  ? std::min(cap, (model.camera.Project(p) - views[v]->uvs[i]).squaredNorm())
-                  : cap;
-    }
-  }
-  return cost;
-}
 }  // namespace
 
 std::optional<InitialMap> Initializer::Process(int64_t seq, double timestamp,
@@ -418,154 +275,6 @@ InitialMap Initializer::Complete(int64_t seq, double timestamp, const SortedFeat
   return map;
 }
 
-std::optional<InitialMap> Initializer::FromMoreViews(int64_t seq, double timestamp,
-                                                     const SortedFeatures& features,
-                                                     const std::vector<Pose3>& starts,
-                                                     const std::string& refused) {
-  const double span = timestamp - reference_->timestamp;
-  if (!(span > 0.0)) return std::nullopt;
-  std::vector<const InitialFrame*> between;
-  for (const InitialFrame& f : kept_frames_) {
-    const double alpha = (f.timestamp - reference_->timestamp) / span;
-    if (alpha >= kMinThirdViewSpan && alpha <= 1.0 - kMinThirdViewSpan) between.push_back(&f);
-  }
-  if (between.empty()) return std::nullopt;
-  const auto start_time = std::chrono::steady_clock::now();
-  std::vector<const InitialFrame*> thirds;
-  for (const size_t i : EvenlySpacedIndices(between.size(), kMaxThirdViews))
-    thirds.push_back(between[i]);
-  std::vector<const SortedFeatures*> views = {&reference_->features, &features};
-  for (const InitialFrame* f : thirds) views.push_back(&f->features);
-
-  const std::vector<VertexId> ids = SharedIds(reference_->features, features, kMaxStartPoints);
-  const BundleAdjustmentOptions ba = TwoViewBaOptions(model_, num_ba_threads_);
-  const PoseOnlyOptions pose_options = tracker_internal::MakePoseOptions(model_);
-  struct Adjusted {
-    BaProblem problem;
-    BundleAdjustmentResult result;
-    double cost = 0.0;
-  };
-  std::vector<Adjusted> adjusted;
-  std::vector<Pose3> tried;
-  for (const Pose3& start : starts) {
-    if (!start.AllFinite() || !(start.translation().norm() > 0.0)) continue;
-    const Pose3 motion(start.rotation(), start.translation().normalized());
-    if (std::any_of(tried.begin(), tried.end(),
-                    [&](const Pose3& other) { return SameMotion(motion, other); })) {
-      continue;
-    }
-    tried.push_back(motion);
-    Adjusted a;
-    a.problem = TwoViewProblem(model_.camera, reference_->features, features, motion, ids, {});
-    if (static_cast<double>(a.problem.points.size()) <
-        (1.0 - kMaxStartBehind) * static_cast<double>(ids.size())) {
-      continue;
-    }
-    // Each further view posed on the points triangulated with the start from the pose
-    // interpolated in time, then every view adjusted together (a two-view adjustment first
-    // would carry every start into the two views' own minimum, a plane's twin too).
-    const Pose3 world_from_camera1 = a.problem.keyframes[1].camera_from_world.Inverse();
-    std::unordered_map<VertexId, int> point_index;
-    for (size_t i = 0; i < a.problem.points.size(); ++i)
-      point_index.emplace(a.problem.points[i].id, static_cast<int>(i));
-    for (size_t t = 0; t < thirds.size(); ++t) {
-      const SortedFeatures& f = thirds[t]->features;
-      std::vector<Eigen::Vector3d> points;
-      std::vector<Eigen::Vector2d> uvs;
-      std::vector<int> indices;
-      for (size_t i = 0; i < f.size(); ++i) {
-        const auto it = point_index.find(f.ids[i]);
-        if (it == point_index.end()) continue;
-        points.push_back(a.problem.points[static_cast<size_t>(it->second)].position_world);
-        uvs.push_back(f.uvs[i]);
-        indices.push_back(it->second);
-      }
-      if (points.size() < static_cast<size_t>(options_.min_points)) continue;
-      const double alpha = (thirds[t]->timestamp - reference_->timestamp) / span;
-      Pose3 camera_from_world = Interpolate(Pose3::Identity(), world_from_camera1, alpha).Inverse();
-      const PoseOnlyResult r =
-          OptimizePose(model_.camera, pose_options, points, uvs, &camera_from_world);
-      if (!r.converged || !camera_from_world.AllFinite()) continue;
-      a.problem.keyframes.push_back({static_cast<KeyframeId>(2 + t), camera_from_world, false});
-      const int keyframe = static_cast<int>(a.problem.keyframes.size() - 1);
-      for (size_t i = 0; i < uvs.size(); ++i)
-        a.problem.observations.push_back({keyframe, indices[i], uvs[i]});
-    }
-    if (a.problem.keyframes.size() < 3) continue;
-    a.result = BundleAdjust(model_.camera, ba, &a.problem);
-    if (!a.result.success) continue;
-    adjusted.push_back(std::move(a));
-  }
-  if (adjusted.empty()) return std::nullopt;
-  // The starts compare on the points every adjustment kept (one start's triangulation leaves
-  // out points near its epipole that another's keeps).
-  std::vector<VertexId> common = ids;
-  for (const Adjusted& a : adjusted) {
-    std::vector<VertexId> kept;
-    for (const BaPoint& p : a.problem.points) kept.push_back(p.id);
-    std::sort(kept.begin(), kept.end());
-    std::vector<VertexId> both;
-    std::set_intersection(common.begin(), common.end(), kept.begin(), kept.end(),
-                          std::back_inserter(both));
-    common = std::move(both);
-  }
-  for (Adjusted& a : adjusted) a.cost = CappedCost(model_, a.problem, views, common);
-  std::sort(adjusted.begin(), adjusted.end(),
-            [](const Adjusted& x, const Adjusted& y) { return x.cost < y.cost; });
-  // Every other start must end at the same minimum (within kSameStartDeg), or far from it
-  // (kFarRivalSigmas) and higher by the margin of AdjustFromEveryStart: minima a few sigmas
-  // apart lie in one valley of the cost.
-  const double margin = kChi2FiveDof999 * model_.pixel_sigma * model_.pixel_sigma;
-  const Pose3& winner = adjusted[0].problem.keyframes[1].camera_from_world;
-  for (size_t i = 1; i < adjusted.size(); ++i) {
-    const Pose3& other = adjusted[i].problem.keyframes[1].camera_from_world;
-    if (SameMotion(winner, other)) continue;
-    const MotionDistance d = DistanceBetween(winner, other);
-    const bool far = d.rotation_deg > kFarRivalSigmas * options_.max_rotation_sigma_deg ||
-                     d.direction_deg > kFarRivalSigmas * options_.max_direction_sigma_deg;
-    if (!far || !(adjusted[0].cost < adjusted[i].cost - margin)) return std::nullopt;
-  }
-  const Adjusted& best = adjusted[0];
-  // The gate of ReconstructTwoView on every view: the motion's deviations with the further
-  // views' poses and the points unknown.
-  std::vector<Pose3> poses;
-  for (const BaKeyframe& k : best.problem.keyframes) poses.push_back(k.camera_from_world);
-  std::vector<Eigen::Vector3d> positions;
-  for (const BaPoint& p : best.problem.points) positions.push_back(p.position_world);
-  std::vector<std::pair<int, int>> seen;
-  for (size_t o = 0; o < best.problem.observations.size(); ++o) {
-    if (o < best.result.outlier.size() && best.result.outlier[o]) continue;
-    seen.emplace_back(best.problem.observations[o].keyframe_index,
-                      best.problem.observations[o].point_index);
-  }
-  const std::optional<MotionUncertainty> uncertainty =
-      MultiViewMotionUncertainty(model_.camera, model_.pixel_sigma, poses, positions, seen);
-  if (!WellDetermined(uncertainty, options_)) return std::nullopt;
-  std::vector<VertexId> out_ids;
-  std::vector<Eigen::Vector3d> out_points;
-  AdjustedPoints(best.problem, best.result, &out_ids, &out_points);
-  const Eigen::Vector3d c1 = winner.Inverse().translation();
-  std::vector<double> parallax;
-  for (const Eigen::Vector3d& p : out_points)
-    parallax.push_back(ParallaxDeg(p, Eigen::Vector3d::Zero(), c1));
-  const double median_parallax = Median(parallax);
-  if (static_cast<int>(out_ids.size()) < options_.min_points ||
-      median_parallax < options_.min_parallax_deg) {
-    return std::nullopt;
-  }
-  const double ms =
-      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start_time)
-          .count();
-  std::ostringstream how;
-  how << refused << "; " << best.problem.keyframes.size() - 2
-      << " frames between them decide among " << tried.size() << " motions in " << ms
-      << " ms, rotation sigma " << RadToDeg(uncertainty->rotation_rad) << " deg, direction sigma "
-      << RadToDeg(uncertainty->direction_rad) << " deg, median parallax " << median_parallax
-      << " deg";
-  return Complete(seq, timestamp, features, winner, std::move(out_ids), std::move(out_points),
-                  false, how.str());
-}
-
 void Initializer::Seed(const std::vector<InitialFrame>& frames, SeedReference which) {
   Reset();
   size_t most = 0;
@@ -600,39 +309,25 @@ void Initializer::KeepFrame(int64_t seq, double timestamp, const SortedFeatures&
 
 void Initializer::SolveInbetween(InitialMap* map) const {
   const double span = map->second.timestamp - map->first.timestamp;
-  const PoseOnlyOptions pose_options = tracker_internal::MakePoseOptions(model_);
   std::unordered_map<VertexId, size_t> point_index;
   for (size_t j = 0; j < map->point_ids.size(); ++j) point_index.emplace(map->point_ids[j], j);
   for (const InitialFrame& f : kept_frames_) {
-    std::vector<Eigen::Vector3d> points;
-    std::vector<Eigen::Vector2d> uvs;
-    std::vector<VertexId> ids;
-    for (size_t i = 0; i < f.features.size(); ++i) {
-      const auto it = point_index.find(f.features.ids[i]);
-      if (it == point_index.end()) continue;
-      ids.push_back(f.features.ids[i]);
-      points.push_back(map->points[it->second]);
-      uvs.push_back(f.features.uvs[i]);
-    }
-    // As many of the map's points as an initialisation needs: a view of a few points at its
-    // edge (turning from a bare wall) fits a wrong pose under noise.
-    if (points.size() < static_cast<size_t>(options_.min_points)) continue;
     const double alpha =
         span > 0.0 ? std::clamp((f.timestamp - map->first.timestamp) / span, 0.0, 1.0) : 0.5;
-    Pose3 camera_from_world =
+    const Pose3 start =
         Interpolate(map->first.world_from_camera, map->second.world_from_camera, alpha).Inverse();
-    const PoseOnlyResult r =
-        OptimizePose(model_.camera, pose_options, points, uvs, &camera_from_world);
-    if (!r.converged || !camera_from_world.AllFinite() ||
-        r.num_inliers <
-            tracker_internal::kSparseViewInlierFraction * static_cast<double>(points.size())) {
+    // As many of the map's points as an initialisation needs.
+    const std::optional<PosedView> posed =
+        PoseOnPoints(model_, f.features, point_index, map->points, start, options_.min_points);
+    if (!posed || posed->result.num_inliers < tracker_internal::kSparseViewInlierFraction *
+                                                  static_cast<double>(posed->features.size())) {
       continue;
     }
-    InitialInbetween solved{f.seq, camera_from_world.Inverse(), {}, {}};
-    for (size_t i = 0; i < ids.size(); ++i) {
-      if (!r.inlier[i]) continue;
-      solved.observed_ids.push_back(ids[i]);
-      solved.observed_uvs.push_back(uvs[i]);
+    InitialInbetween solved{f.seq, posed->camera_from_world.Inverse(), {}, {}};
+    for (size_t i = 0; i < posed->features.size(); ++i) {
+      if (!posed->result.inlier[i]) continue;
+      solved.observed_ids.push_back(f.features.ids[posed->features[i]]);
+      solved.observed_uvs.push_back(f.features.uvs[posed->features[i]]);
     }
     map->inbetween.push_back(std::move(solved));
   }
