@@ -6,6 +6,7 @@
 #include <sstream>
 #include <unordered_map>
 
+#include "m2s/common/logging.h"
 #include "m2s/common/numeric.h"
 #include "mapping/triangulation.h"
 #include "tracking/initializer.h"
@@ -65,6 +66,11 @@ std::optional<InitialMap> Initializer::FromMoreViews(int64_t seq, double timesta
                                                      const SortedFeatures& features,
                                                      const std::vector<Pose3>& starts,
                                                      const std::string& refused) {
+  auto refuse = [&](const std::string& why) -> std::optional<InitialMap> {
+    M2S_LOG(kDebug) << "more views with frames " << reference_->seq << " and " << seq
+                    << " refused: " << why;
+    return std::nullopt;
+  };
   const double span = timestamp - reference_->timestamp;
   if (!(span > 0.0)) return std::nullopt;
   std::vector<const InitialFrame*> between;
@@ -72,7 +78,7 @@ std::optional<InitialMap> Initializer::FromMoreViews(int64_t seq, double timesta
     const double alpha = (f.timestamp - reference_->timestamp) / span;
     if (alpha >= kMinThirdViewSpan && alpha <= 1.0 - kMinThirdViewSpan) between.push_back(&f);
   }
-  if (between.empty()) return std::nullopt;
+  if (between.empty()) return refuse("no kept frame between the views");
   const auto start_time = std::chrono::steady_clock::now();
   std::vector<const InitialFrame*> thirds;
   for (const size_t i : EvenlySpacedIndices(between.size(), kMaxThirdViews))
@@ -129,7 +135,7 @@ std::optional<InitialMap> Initializer::FromMoreViews(int64_t seq, double timesta
     if (!a.result.success) continue;
     adjusted.push_back(std::move(a));
   }
-  if (adjusted.empty()) return std::nullopt;
+  if (adjusted.empty()) return refuse("no start adjusted over three views or more");
   // The starts compare on the points every adjustment kept (one start's triangulation leaves
   // out points near its epipole that another's keeps).
   std::vector<VertexId> common = ids;
@@ -156,7 +162,12 @@ std::optional<InitialMap> Initializer::FromMoreViews(int64_t seq, double timesta
     const MotionDistance d = DistanceBetween(winner, other);
     const bool far = d.rotation_deg > kFarRivalSigmas * options_.max_rotation_sigma_deg ||
                      d.direction_deg > kFarRivalSigmas * options_.max_direction_sigma_deg;
-    if (!far || !(adjusted[0].cost < adjusted[i].cost - margin)) return std::nullopt;
+    if (!far || !(adjusted[0].cost < adjusted[i].cost - margin)) {
+      std::ostringstream why;
+      why << "another minimum " << d.rotation_deg << " deg of rotation and " << d.direction_deg
+          << " deg of direction away costs " << adjusted[i].cost - adjusted[0].cost << " more";
+      return refuse(why.str());
+    }
   }
   const Adjusted& best = adjusted[0];
   // The gate of ReconstructTwoView on every view: the motion's deviations with the further
@@ -173,7 +184,15 @@ std::optional<InitialMap> Initializer::FromMoreViews(int64_t seq, double timesta
   }
   const std::optional<MotionUncertainty> uncertainty =
       MultiViewMotionUncertainty(model_.camera, model_.pixel_sigma, poses, positions, seen);
-  if (!WellDetermined(uncertainty, options_)) return std::nullopt;
+  if (!WellDetermined(uncertainty, options_)) {
+    std::ostringstream why;
+    why << "the motion is undetermined";
+    if (uncertainty) {
+      why << " (rotation sigma " << RadToDeg(uncertainty->rotation_rad) << " deg, direction sigma "
+          << RadToDeg(uncertainty->direction_rad) << " deg)";
+    }
+    return refuse(why.str());
+  }
   std::vector<VertexId> out_ids;
   std::vector<Eigen::Vector3d> out_points;
   AdjustedPoints(best.problem, best.result, &out_ids, &out_points);
@@ -184,7 +203,8 @@ std::optional<InitialMap> Initializer::FromMoreViews(int64_t seq, double timesta
   const double median_parallax = Median(parallax);
   if (static_cast<int>(out_ids.size()) < options_.min_points ||
       median_parallax < options_.min_parallax_deg) {
-    return std::nullopt;
+    return refuse(std::to_string(out_ids.size()) + " points, median parallax " +
+                  std::to_string(median_parallax) + " deg");
   }
   const double ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start_time)
