@@ -14,7 +14,11 @@
 // mapping_thread_ and is the map's only writer while it runs (merges included); Reset/LoadMap
 // and starting a new map stop mapping, change the map, and start it again. Shutdown stops the
 // queues (end of stream), discards queued frames and keyframes, and joins both threads.
-// Lock order: trajectory_mutex_, then maps_mutex_, then the map's own lock.
+// In real time (not Options::deterministic) the frames between a new map's two views are solved
+// after it, a few after each tracked frame (the solves of a few dozen frames took most of the
+// initialisation's time), and all of them before a merge, a new map or RefineMap.
+// Lock order: inbetween_mutex_, then trajectory_mutex_, then maps_mutex_, then the map's own
+// lock.
 #pragma once
 
 #include <atomic>
@@ -76,7 +80,11 @@ class SlamSystem final : public System {
   // Starts the current (empty) map from an initial map whose second view is the frame of
   // `result`, already recorded: the records of its two views and of the frames between them
   // that it explains get their poses.
-  TrackResult StartFromInitialMap(const InitialMap& initial, TrackResult result);
+  TrackResult StartFromInitialMap(InitialMap initial, TrackResult result);
+  // Solves frames between the current map's two views still pending (inbetween_) for about
+  // `budget_ms` (at least one frame; all with a negative budget) and gives their records
+  // their poses.
+  void SolvePendingInbetween(double budget_ms);
   void ResetInitializers();
   void ResetLocked(bool keep_localization_only);
   Status LoadMapLocked(const std::string& path);
@@ -132,6 +140,16 @@ class SlamSystem final : public System {
   int maps_created_ = 1;
   int64_t map_merges_ = 0;
   std::optional<MergeNotice> last_merge_;  // under trajectory_mutex_
+
+  // The frames between the current map's two views still to solve (SolvePendingInbetween),
+  // with the map's first keyframe and the map.
+  struct PendingInbetween {
+    InbetweenSolver solver;
+    KeyframeId first = 0;
+    int map_id = 0;
+  };
+  std::mutex inbetween_mutex_;
+  std::optional<PendingInbetween> inbetween_;
 
   mutable std::mutex stats_mutex_;
   SystemStats stats_;  // frame counters (map and queue figures are filled in by Stats())

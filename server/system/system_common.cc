@@ -50,6 +50,34 @@ void MoveRecord(const Sim3& new_from_old, int new_map_id, TrajectoryRecord* reco
   record->map_id = new_map_id;
 }
 
+namespace {
+
+// Gives a record without a pose in another map the pose of the frame between the two views
+// `f`, relative to the first keyframe; counts it in `marked`.
+void MarkInbetween(const InitialInbetween& f, KeyframeId first, int map_id, int kept,
+                   TrajectoryRecord* r, InitialFramesMarked* marked) {
+  if (HasPose(r->state)) return;  // a pose in another map already
+  ++marked->marked;
+  marked->was_lost += r->state == TrackingState::kLost ? 1 : 0;
+  r->state = TrackingState::kOk;
+  r->reference = first;
+  r->map_id = map_id;
+  // The first keyframe is the initial map's world.
+  r->world_from_camera = f.world_from_camera;
+  r->reference_from_camera = f.world_from_camera;
+  if (kept <= 0) return;
+  const std::vector<size_t> keep =
+      EvenlySpacedIndices(f.observed_ids.size(), static_cast<size_t>(kept));
+  r->observed_ids.clear();
+  r->observed_uvs.clear();
+  for (const size_t i : keep) {
+    r->observed_ids.push_back(f.observed_ids[i]);
+    r->observed_uvs.push_back(f.observed_uvs[i].cast<float>());
+  }
+}
+
+}  // namespace
+
 InitialFramesMarked MarkInitialFrames(const InitialMap& initial, KeyframeId first,
                                       KeyframeId second, int map_id, int kept,
                                       std::vector<TrajectoryRecord>* records) {
@@ -59,35 +87,31 @@ InitialFramesMarked MarkInitialFrames(const InitialMap& initial, KeyframeId firs
   for (TrajectoryRecord& r : *records) {
     const bool is_first = r.seq == initial.first.seq;
     const bool is_second = r.seq == initial.second.seq;
-    const auto it = is_first || is_second ? inbetween.end() : inbetween.find(r.seq);
-    if (!is_first && !is_second && it == inbetween.end()) continue;
-    if (!is_first && HasPose(r.state)) continue;  // a pose in another map already
-    ++marked.marked;
-    marked.was_lost += r.state == TrackingState::kLost ? 1 : 0;
-    r.state = TrackingState::kOk;
-    r.reference = is_second ? second : first;
-    r.map_id = map_id;
     if (is_first || is_second) {
+      if (is_second && HasPose(r.state)) continue;  // a pose in another map already
+      ++marked.marked;
+      marked.was_lost += r.state == TrackingState::kLost ? 1 : 0;
+      r.state = TrackingState::kOk;
+      r.reference = is_second ? second : first;
+      r.map_id = map_id;
       r.reference_from_camera = Pose3::Identity();
       r.world_from_camera =
           is_first ? initial.first.world_from_camera : initial.second.world_from_camera;
       r.is_keyframe = true;
       continue;
     }
-    // The first keyframe is the initial map's world.
-    const InitialInbetween& f = *it->second;
-    r.world_from_camera = f.world_from_camera;
-    r.reference_from_camera = f.world_from_camera;
-    if (kept <= 0) continue;
-    const std::vector<size_t> keep =
-        EvenlySpacedIndices(f.observed_ids.size(), static_cast<size_t>(kept));
-    r.observed_ids.clear();
-    r.observed_uvs.clear();
-    for (const size_t i : keep) {
-      r.observed_ids.push_back(f.observed_ids[i]);
-      r.observed_uvs.push_back(f.observed_uvs[i].cast<float>());
-    }
+    const auto it = inbetween.find(r.seq);
+    if (it != inbetween.end()) MarkInbetween(*it->second, first, map_id, kept, &r, &marked);
   }
+  return marked;
+}
+
+InitialFramesMarked MarkInbetweenFrame(const InitialInbetween& frame, KeyframeId first, int map_id,
+                                       int kept, std::vector<TrajectoryRecord>* records) {
+  InitialFramesMarked marked;
+  const auto r = std::find_if(records->rbegin(), records->rend(),
+                              [&](const TrajectoryRecord& x) { return x.seq == frame.seq; });
+  if (r != records->rend()) MarkInbetween(frame, first, map_id, kept, &*r, &marked);
   return marked;
 }
 

@@ -91,6 +91,10 @@ struct InitialFramesMarked {
 InitialFramesMarked MarkInitialFrames(const InitialMap& initial, KeyframeId first,
                                       KeyframeId second, int map_id, int kept,
                                       std::vector<TrajectoryRecord>* records);
+// The same for one frame between the two views solved later (InbetweenSolver), its record
+// found by seq.
+InitialFramesMarked MarkInbetweenFrame(const InitialInbetween& frame, KeyframeId first, int map_id,
+                                       int kept, std::vector<TrajectoryRecord>* records);
 
 // Starts `tracker` from the initial map's second keyframe `second`.
 void StartTracking(const InitialMap& initial, KeyframeId second, double timestamp,

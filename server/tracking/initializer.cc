@@ -20,6 +20,10 @@ using RefusalKind = TwoViewRefusal::Kind;
 // reference reaches this fraction of the bound, and at least this often.
 constexpr double kRetryParallaxFraction = 0.8;
 constexpr double kMaxInitRetryDelayS = 0.1;
+// ... and at least this much later: near the bound the parallax grows little from one frame to
+// the next, and at 120 fps attempts of 5-9 ms in every frame kept the tracking thread busy for
+// the whole period (frames dropped at the initialisation). Every frame below 55 fps.
+constexpr double kMinInitRetryDelayS = 0.018;
 // Second opinions (ReconstructTwoView) refuse at most this many attempts per map: more baseline
 // usually narrows a valley of motions, but bunched dense objects keep one for seconds (the
 // scanned-objects head motion: 15 s), and the views a few attempts later may be weaker still
@@ -136,7 +140,8 @@ std::optional<InitialMap> Initializer::Process(int64_t seq, double timestamp,
       // Weak geometry needs more baseline whatever the parallax: the longest wait.
       if (refusal.kind != RefusalKind::kWeakGeometry && parallax > 0.0 && elapsed > 0.0) {
         const double needed = kRetryParallaxFraction * options_.min_parallax_deg;
-        wait = std::clamp(elapsed * (needed / parallax - 1.0), 0.0, kMaxInitRetryDelayS);
+        wait = std::clamp(elapsed * (needed / parallax - 1.0), kMinInitRetryDelayS,
+                          kMaxInitRetryDelayS);
       }
       next_attempt_time_ = timestamp + wait;
     }
@@ -260,14 +265,24 @@ InitialMap Initializer::Complete(int64_t seq, double timestamp, const SortedFeat
   map.first.world_from_camera = Pose3::Identity();
   map.second = InitialFrame{seq, timestamp, features, world_from_camera1};
   map.used_homography = used_homography;
-  const auto t0 = std::chrono::steady_clock::now();
-  SolveInbetween(&map);
-  const double inbetween_ms =
-      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  std::ostringstream frames_between;
+  if (defer_inbetween_) {
+    frames_between << kept_frames_.size() << " frames between them to solve";
+    map.unsolved = std::move(kept_frames_);
+  } else {
+    const auto t0 = std::chrono::steady_clock::now();
+    InbetweenSolver solver(model_, options_.min_points, map, std::move(kept_frames_));
+    while (!solver.done()) {
+      if (std::optional<InitialInbetween> f = solver.SolveNext())
+        map.inbetween.push_back(std::move(*f));
+    }
+    frames_between
+        << map.inbetween.size() << " of " << solver.size() << " frames between them solved in "
+        << std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count()
+        << " ms";
+  }
   M2S_LOG(kInfo) << "initialised from frames " << map.first.seq << " and " << seq << " with "
-                 << map.points.size() << " points (" << how << "); " << map.inbetween.size()
-                 << " of " << kept_frames_.size() << " frames between them solved in "
-                 << inbetween_ms << " ms";
+                 << map.points.size() << " points (" << how << "); " << frames_between.str();
   reference_.reset();
   kept_frames_.clear();
   second_opinion_refusals_ = 0;
@@ -307,30 +322,38 @@ void Initializer::KeepFrame(int64_t seq, double timestamp, const SortedFeatures&
   kept_frames_.push_back(InitialFrame{seq, timestamp, features, Pose3::Identity()});
 }
 
-void Initializer::SolveInbetween(InitialMap* map) const {
-  const double span = map->second.timestamp - map->first.timestamp;
-  std::unordered_map<VertexId, size_t> point_index;
-  for (size_t j = 0; j < map->point_ids.size(); ++j) point_index.emplace(map->point_ids[j], j);
-  for (const InitialFrame& f : kept_frames_) {
-    const double alpha =
-        span > 0.0 ? std::clamp((f.timestamp - map->first.timestamp) / span, 0.0, 1.0) : 0.5;
-    const Pose3 start =
-        Interpolate(map->first.world_from_camera, map->second.world_from_camera, alpha).Inverse();
-    // As many of the map's points as an initialisation needs.
-    const std::optional<PosedView> posed =
-        PoseOnPoints(model_, f.features, point_index, map->points, start, options_.min_points);
-    if (!posed || posed->result.num_inliers < tracker_internal::kSparseViewInlierFraction *
-                                                  static_cast<double>(posed->features.size())) {
-      continue;
-    }
-    InitialInbetween solved{f.seq, posed->camera_from_world.Inverse(), {}, {}};
-    for (size_t i = 0; i < posed->features.size(); ++i) {
-      if (!posed->result.inlier[i]) continue;
-      solved.observed_ids.push_back(f.features.ids[posed->features[i]]);
-      solved.observed_uvs.push_back(f.features.uvs[posed->features[i]]);
-    }
-    map->inbetween.push_back(std::move(solved));
+InbetweenSolver::InbetweenSolver(const MeasurementModel& model, int min_points,
+                                 const InitialMap& map, std::vector<InitialFrame> frames)
+    : model_(model),
+      min_points_(min_points),
+      points_(map.points),
+      first_time_(map.first.timestamp),
+      span_(map.second.timestamp - map.first.timestamp),
+      world_from_first_(map.first.world_from_camera),
+      world_from_second_(map.second.world_from_camera),
+      frames_(std::move(frames)) {
+  for (size_t j = 0; j < map.point_ids.size(); ++j) point_index_.emplace(map.point_ids[j], j);
+}
+
+std::optional<InitialInbetween> InbetweenSolver::SolveNext() {
+  if (done()) return std::nullopt;
+  const InitialFrame& f = frames_[next_++];
+  const double alpha =
+      span_ > 0.0 ? std::clamp((f.timestamp - first_time_) / span_, 0.0, 1.0) : 0.5;
+  const Pose3 start = Interpolate(world_from_first_, world_from_second_, alpha).Inverse();
+  const std::optional<PosedView> posed =
+      PoseOnPoints(model_, f.features, point_index_, points_, start, min_points_);
+  if (!posed || posed->result.num_inliers < tracker_internal::kSparseViewInlierFraction *
+                                                static_cast<double>(posed->features.size())) {
+    return std::nullopt;
   }
+  InitialInbetween solved{f.seq, posed->camera_from_world.Inverse(), {}, {}};
+  for (size_t i = 0; i < posed->features.size(); ++i) {
+    if (!posed->result.inlier[i]) continue;
+    solved.observed_ids.push_back(f.features.ids[posed->features[i]]);
+    solved.observed_uvs.push_back(f.features.uvs[posed->features[i]]);
+  }
+  return solved;
 }
 
 }  // namespace m2s::slam

@@ -32,6 +32,7 @@
 
 #include <optional>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include "m2s/slam/system.h"
@@ -66,6 +67,37 @@ struct InitialMap {
   // the pose interpolated in time, converged with tracking's sparse-view rule), in order.
   // Frames it does not explain are left out.
   std::vector<InitialInbetween> inbetween;
+  // With Initializer::DeferInbetween, those frames still to solve instead (InbetweenSolver), in
+  // order; `inbetween` is then empty.
+  std::vector<InitialFrame> unsolved;
+};
+
+// Solves the frames between an initial map's two views on its points, one at a time
+// (InitialMap::inbetween): each pose-only from the pose interpolated in time between the two
+// views, on at least InitializerOptions::min_points of the map's points (a view of a few points
+// at its edge, turning from a bare wall, fits a wrong pose under noise), kept when tracking's
+// sparse-view rule holds. Holds copies of what it needs: the map may go.
+//
+//   InbetweenSolver solver(model, options.min_points, map, std::move(map.unsolved));
+//   while (!solver.done()) if (auto f = solver.SolveNext()) { /* f->seq has a pose */ }
+class InbetweenSolver {
+ public:
+  InbetweenSolver(const MeasurementModel& model, int min_points, const InitialMap& map,
+                  std::vector<InitialFrame> frames);
+  bool done() const { return next_ == frames_.size(); }
+  size_t size() const { return frames_.size(); }
+  // Solves the next frame: nullopt when the map's points do not determine its pose.
+  std::optional<InitialInbetween> SolveNext();
+
+ private:
+  MeasurementModel model_;
+  int min_points_;
+  std::unordered_map<VertexId, size_t> point_index_;
+  std::vector<Eigen::Vector3d> points_;
+  double first_time_ = 0.0, span_ = 0.0;
+  Pose3 world_from_first_, world_from_second_;
+  std::vector<InitialFrame> frames_;
+  size_t next_ = 0;
 };
 
 class Initializer {
@@ -93,6 +125,10 @@ class Initializer {
   };
   void Seed(const std::vector<InitialFrame>& frames, SeedReference which);
   const std::string& last_failure() const { return last_failure_; }
+  // With `defer`, a map leaves its kept frames unsolved (InitialMap::unsolved) for the caller
+  // to solve when it has time (a real-time system: the solves of a few dozen frames took most
+  // of the initialisation's time). Default: solved before Process() returns.
+  void DeferInbetween(bool defer) { defer_inbetween_ = defer; }
   // The reference frame's seq, when one is held.
   std::optional<int64_t> reference_seq() const {
     return reference_ ? std::optional<int64_t>(reference_->seq) : std::nullopt;
@@ -117,13 +153,12 @@ class Initializer {
   // (InitializerOptions::more_views_after_s).
   bool MoreViewsDue(double timestamp) const;
   // The initial map of the reference and this frame from the motion and points (camera 0,
-  // any scale): scaled to median depth 1, the kept frames solved on it; logs `how`, resets.
+  // any scale): scaled to median depth 1, the kept frames solved on it (or left to the caller:
+  // DeferInbetween); logs `how`, resets.
   InitialMap Complete(int64_t seq, double timestamp, const SortedFeatures& features,
                       const Pose3& camera1_from_world, std::vector<VertexId> ids,
                       std::vector<Eigen::Vector3d> points, bool used_homography,
                       const std::string& how);
-  // Solves the kept frames on `map` (InitialMap::inbetween).
-  void SolveInbetween(InitialMap* map) const;
   void KeepFrame(int64_t seq, double timestamp, const SortedFeatures& features);
 
   std::optional<InitialFrame> reference_;
@@ -136,6 +171,7 @@ class Initializer {
   std::optional<double> refused_since_;      // the first refused attempt's capture time, since
                                              // the last map or Reset
   std::string last_failure_;
+  bool defer_inbetween_ = false;
 };
 
 }  // namespace m2s::slam

@@ -182,6 +182,63 @@ TEST(SystemApi, SavedMapIsLoadedForLocalisationOnly) {
   std::remove(path.c_str());
 }
 
+// In real time the frames between the first map's two views are solved after it, over the
+// next tracked frames: in the end they have the poses the deterministic system gives them
+// (solved at once), on the truth, and the counters count them as tracked.
+TEST(SystemApi, RealTimeSolvesTheFramesBetweenTheTwoViewsAfterTheMap) {
+  const auto& frames = Sequence().frames;
+  const size_t n = std::min<size_t>(frames.size(), 150);
+  auto has_pose = [](TrackingState s) {
+    return s == TrackingState::kOk || s == TrackingState::kRelocalized;
+  };
+  // The frames before the initialising one (the first with a pose) that end with a pose.
+  struct Run {
+    int64_t initialised_at = -1;
+    std::vector<TrajectoryEntry> before;
+    SystemStats stats;
+    int64_t with_pose = 0;
+  };
+  auto run = [&](bool deterministic) {
+    auto system = MakeSystem(deterministic);
+    Run out;
+    for (size_t i = 0; i < n; ++i) {
+      TrackResult r;
+      if (deterministic) {
+        r = system->Track(frames[i]);
+      } else {
+        system->Submit(frames[i]);  // one at a time: nothing dropped
+        EXPECT_TRUE(system->WaitForResult(&r, 60.0));
+      }
+      if (out.initialised_at < 0 && has_pose(r.state)) out.initialised_at = r.seq;
+    }
+    for (const TrajectoryEntry& e : system->Trajectory()) {
+      out.with_pose += has_pose(e.state) ? 1 : 0;
+      if (has_pose(e.state) && e.seq < out.initialised_at) out.before.push_back(e);
+    }
+    out.stats = system->Stats();
+    return out;
+  };
+  const Run now = run(/*deterministic=*/true);
+  const Run later = run(/*deterministic=*/false);
+  ASSERT_GT(now.initialised_at, 0);
+  EXPECT_EQ(later.initialised_at, now.initialised_at);
+  // The reference frame and the frames between, all of them posed (noise-free data).
+  ASSERT_GE(now.before.size(), 3u);
+  ASSERT_EQ(later.before.size(), now.before.size());
+  for (size_t i = 0; i < now.before.size(); ++i) {
+    EXPECT_EQ(later.before[i].seq, now.before[i].seq);
+    EXPECT_LT((later.before[i].world_from_camera.translation() -
+               now.before[i].world_from_camera.translation())
+                  .norm(),
+              1e-6);
+  }
+  EXPECT_LT(ComputeAte(later.before).rmse, 1e-3);
+  EXPECT_EQ(later.stats.frames_tracked, later.with_pose);
+  EXPECT_EQ(later.stats.frames_tracked + later.stats.frames_lost +
+                (now.initialised_at - static_cast<int64_t>(now.before.size())),
+            static_cast<int64_t>(n));
+}
+
 TEST(SystemApi, ShutdownWithFramesStillQueuedIsCleanAndIdempotent) {
   Options options = DefaultOptions(Sequence().camera);
   options.deterministic = false;

@@ -166,37 +166,51 @@ TEST(Initializer, ToleratesWrongIds) {
 // A slow sideways motion: the first frames have too little parallax; once a later one
 // initialises, the frames between the two views get their poses on the initial map (the truth
 // up to the monocular scale), and a frame that is not a view of the scene (its pixels shuffled
-// among its ids) is left out.
+// among its ids) is left out. The same when the map leaves them to the caller
+// (DeferInbetween) and InbetweenSolver solves them.
 TEST(Initializer, SolvesTheFramesBetweenTheTwoViews) {
   const Options options = TestOptions();
-  Initializer init(options.measurement(), options.initializer, 1);
-  const int kScrambled = 5;
-  std::vector<Pose3> truth;
-  std::optional<InitialMap> map;
-  Views views;
-  for (int k = 0; k < 60 && !map; ++k) {
-    truth.push_back(Motion(0.01 * k, 0.1 * k));
-    views = MakeViews(options.camera, truth.back(), false);
-    SortedFeatures view = views.view1;
-    if (k == kScrambled) {
-      std::mt19937 rng(3);
-      std::shuffle(view.uvs.begin(), view.uvs.end(), rng);
+  for (const bool defer : {false, true}) {
+    SCOPED_TRACE(defer ? "deferred" : "at once");
+    Initializer init(options.measurement(), options.initializer, 1);
+    init.DeferInbetween(defer);
+    const int kScrambled = 5;
+    std::vector<Pose3> truth;
+    std::optional<InitialMap> map;
+    for (int k = 0; k < 60 && !map; ++k) {
+      truth.push_back(Motion(0.01 * k, 0.1 * k));
+      SortedFeatures view = MakeViews(options.camera, truth.back(), false).view1;
+      if (k == kScrambled) {
+        std::mt19937 rng(3);
+        std::shuffle(view.uvs.begin(), view.uvs.end(), rng);
+      }
+      map = init.Process(k, 0.1 * k, view);
     }
-    map = init.Process(k, 0.1 * k, view);
+    ASSERT_TRUE(map.has_value()) << init.last_failure();
+    ASSERT_EQ(map->first.seq, 0);
+    const int64_t second = map->second.seq;
+    ASSERT_GE(second, 3) << "the motion is meant to need several frames";
+    if (defer) {
+      EXPECT_TRUE(map->inbetween.empty());
+      ASSERT_EQ(map->unsolved.size(), static_cast<size_t>(second - 1));
+      InbetweenSolver solver(options.measurement(), options.initializer.min_points, *map,
+                             std::move(map->unsolved));
+      while (!solver.done()) {
+        if (auto f = solver.SolveNext()) map->inbetween.push_back(std::move(*f));
+      }
+    } else {
+      EXPECT_TRUE(map->unsolved.empty());
+    }
+    for (const InitialInbetween& f : map->inbetween) {
+      EXPECT_GE(f.observed_ids.size(), map->points.size() * 9 / 10) << f.seq;
+    }
+    const std::vector<int64_t> solved = ExpectInbetweenMatchesTruth(*map, truth);
+    std::vector<int64_t> expected_seqs;
+    for (int64_t k = 1; k < second; ++k) {
+      if (k != kScrambled) expected_seqs.push_back(k);
+    }
+    EXPECT_EQ(solved, expected_seqs);
   }
-  ASSERT_TRUE(map.has_value()) << init.last_failure();
-  ASSERT_EQ(map->first.seq, 0);
-  const int64_t second = map->second.seq;
-  ASSERT_GE(second, 3) << "the motion is meant to need several frames";
-  for (const InitialInbetween& f : map->inbetween) {
-    EXPECT_GE(f.observed_ids.size(), map->points.size() * 9 / 10) << f.seq;
-  }
-  const std::vector<int64_t> solved = ExpectInbetweenMatchesTruth(*map, truth);
-  std::vector<int64_t> expected_seqs;
-  for (int64_t k = 1; k < second; ++k) {
-    if (k != kScrambled) expected_seqs.push_back(k);
-  }
-  EXPECT_EQ(solved, expected_seqs);
 }
 
 // Seed() (the lost frames before a new map starts): the earliest frame with nearly the most
