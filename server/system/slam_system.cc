@@ -273,6 +273,8 @@ void SlamSystem::TryMergeSetAsideMaps() {
           alignment = *a;
           return;
         }
+        M2S_LOG(kDebug) << "map " << current_map_ << " not merged into map " << set_aside_[i].id
+                        << ": " << a.error();
       }
     });
   }
