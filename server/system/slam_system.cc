@@ -252,12 +252,6 @@ void SlamSystem::StartNewMap(bool keep) {
 
 void SlamSystem::TryMergeSetAsideMaps() {
   if (!options_.multi_map.enabled) return;
-  {
-    std::lock_guard<std::mutex> m(maps_mutex_);
-    if (set_aside_.empty()) return;
-  }
-  // A merge moves the current map's records: every one of them must have its pose first.
-  SolvePendingInbetween(-1.0);
   const MapAlignmentOptions align = MergeAlignmentOptions(options_);
   std::optional<size_t> base;
   MapAlignment alignment;
@@ -279,6 +273,8 @@ void SlamSystem::TryMergeSetAsideMaps() {
     });
   }
   if (!base) return;
+  // The merge moves the current map's records: every one of them must have its pose first.
+  SolvePendingInbetween(-1.0);
   int from = 0, into = 0;
   {
     std::lock_guard<std::mutex> t(trajectory_mutex_);
