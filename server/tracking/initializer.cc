@@ -187,9 +187,7 @@ std::optional<InitialMap> Initializer::Process(int64_t seq, double timestamp,
     last_failure_ = "the refined motion is undetermined";
     if (uncertainty) {
       M2S_LOG(kDebug) << "initialisation with frames " << reference_->seq << " and " << seq
-                      << " refused after adjustment: rotation sigma "
-                      << RadToDeg(uncertainty->rotation_rad) << " deg, direction sigma "
-                      << RadToDeg(uncertainty->direction_rad) << " deg";
+                      << " refused after adjustment: " << Describe(*uncertainty);
     }
     next_attempt_time_ = timestamp + kMaxInitRetryDelayS;
     if (frames_since_reference_ > options_.max_reference_age) set_reference();

@@ -188,8 +188,7 @@ std::optional<InitialMap> Initializer::FromMoreViews(int64_t seq, double timesta
     std::ostringstream why;
     why << "the motion is undetermined";
     if (uncertainty) {
-      why << " (rotation sigma " << RadToDeg(uncertainty->rotation_rad) << " deg, direction sigma "
-          << RadToDeg(uncertainty->direction_rad) << " deg)";
+      why << " (" << Describe(*uncertainty) << ")";
     }
     return refuse(why.str());
   }
@@ -211,10 +210,8 @@ std::optional<InitialMap> Initializer::FromMoreViews(int64_t seq, double timesta
           .count();
   std::ostringstream how;
   how << refused << "; " << best.problem.keyframes.size() - 2
-      << " frames between them decide among " << tried.size() << " motions in " << ms
-      << " ms, rotation sigma " << RadToDeg(uncertainty->rotation_rad) << " deg, direction sigma "
-      << RadToDeg(uncertainty->direction_rad) << " deg, median parallax " << median_parallax
-      << " deg";
+      << " frames between them decide among " << tried.size() << " motions in " << ms << " ms, "
+      << Describe(*uncertainty) << ", median parallax " << median_parallax << " deg";
   return Complete(seq, timestamp, features, winner, std::move(out_ids), std::move(out_points),
                   false, how.str());
 }

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <sstream>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
@@ -11,6 +12,13 @@
 #include "m2s/common/numeric.h"
 
 namespace m2s::slam {
+
+std::string Describe(const MotionUncertainty& u) {
+  std::ostringstream out;
+  out << "rotation sigma " << RadToDeg(u.rotation_rad) << " deg, direction sigma "
+      << RadToDeg(u.direction_rad) << " deg";
+  return out.str();
+}
 
 namespace {
 

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <optional>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -25,6 +26,9 @@ struct MotionUncertainty {
   double rotation_rad = 0.0;
   double direction_rad = 0.0;
 };
+// "rotation sigma R deg, direction sigma D deg", for the logs and refusal messages.
+std::string Describe(const MotionUncertainty& u);
+
 std::optional<MotionUncertainty> TwoViewMotionUncertainty(
     const Camera& camera, double pixel_sigma, const Pose3& camera1_from_camera0,
     const std::vector<Eigen::Vector3d>& points_camera0);

@@ -431,8 +431,7 @@ std::optional<TwoViewReconstruction> ReconstructTwoViewUnguarded(
     std::ostringstream why;
     why << "the views leave the motion undetermined";
     if (uncertainty) {
-      why << " (rotation sigma " << RadToDeg(uncertainty->rotation_rad) << " deg, direction sigma "
-          << RadToDeg(uncertainty->direction_rad) << " deg)";
+      why << " (" << Describe(*uncertainty) << ")";
     }
     fail(RefusalKind::kWeakGeometry, why.str());
     if (refusal) {
