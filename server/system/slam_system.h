@@ -1,6 +1,7 @@
 // The concrete System: validation -> initialisation / tracking (calling thread, or the tracking
 // thread fed by the latest-wins input queue) -> bounded keyframe queue -> local mapping thread
-// (inline when Options::deterministic). See m2s/slam/system.h for the contract.
+// (inline when Options::deterministic). See m2s/slam/system.h for the contract. slam_system.cc
+// holds the frame path, results and map I/O; slam_system_maps.cc initialisation and multi-map.
 //
 // Multi-map: when tracking stays lost (MultiMapOptions), the map is set aside and a new one
 // initialises from the next frames. After each keyframe the mapping stage tries to align every
