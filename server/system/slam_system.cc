@@ -9,6 +9,7 @@
 
 #include "m2s/common/logging.h"
 #include "m2s/common/numeric.h"
+#include "system/refinement_internal.h"
 #include "system/trajectory_refinement.h"
 #include "tracking/feature_budget.h"
 
@@ -265,8 +266,14 @@ void SlamSystem::RefineMap() {
     mapper_.GlobalBundleAdjust(kFinalBaIterations, /*max_points=*/0);
     std::lock_guard<std::mutex> t(trajectory_mutex_);
     map_.Read([&](const MapData& current) {
+      std::optional<Pose3> previous;  // camera_from_world of the last frame with a pose
       for (Record& r : trajectory_) {
-        if (r.map_id == current_map_) RefineFramePose(options_.measurement(), current, &r);
+        if (r.map_id != current_map_) continue;
+        RefineFramePose(options_.measurement(), current, &r, previous ? &*previous : nullptr);
+        if (const std::optional<Pose3> pose =
+                refinement_internal::RecordPose(current, current_map_, r)) {
+          previous = pose->Inverse();
+        }
       }
       const int solved = SolveUnposedFrames(options_.measurement(), current, current_map_,
                                             kUnposedMinPoints, &trajectory_);

@@ -48,24 +48,37 @@ using refinement_internal::ExactData;
 using refinement_internal::MappedObservations;
 using refinement_internal::RecordPose;
 
-bool RefineFramePose(const MeasurementModel& model, const MapData& map, TrajectoryRecord* record) {
-  if (!HasPose(record->state) || record->is_keyframe || !record->reference) return false;
+bool RefineFramePose(const MeasurementModel& model, const MapData& map, TrajectoryRecord* record,
+                     const Pose3* fallback_start) {
+  if (!HasPose(record->state) || !record->reference) return false;
   const std::optional<Pose3> reference = map.ResolveKeyframePose(*record->reference);
   if (!reference) return false;
   std::vector<Eigen::Vector3d> points;
   std::vector<Eigen::Vector2d> uvs;
   MappedObservations(map, *record, &points, &uvs);
   if (points.size() < static_cast<size_t>(tracker_internal::kMinTrackedInliers)) return false;
-  Pose3 solved = (*reference * record->reference_from_camera).Inverse();
-  const PoseOnlyResult r =
-      OptimizePose(model.camera, tracker_internal::MakePoseOptions(model), points, uvs, &solved);
   // As tracking asks of a sparse view: most of the observations explained.
-  if (!r.converged || !solved.AllFinite() ||
-      r.num_inliers <
-          tracker_internal::kSparseViewInlierFraction * static_cast<double>(points.size())) {
-    return false;
+  const double min_inliers =
+      tracker_internal::kSparseViewInlierFraction * static_cast<double>(points.size());
+  const Pose3 current = (*reference * record->reference_from_camera).Inverse();
+  if (record->is_keyframe) {
+    const double max_err_sq = kChi2TwoDof95 * model.pixel_sigma * model.pixel_sigma;
+    int explained = 0;
+    for (size_t i = 0; i < points.size(); ++i) {
+      explained += ReprojectionErrorSq(model.camera, current, points[i], uvs[i]) <= max_err_sq;
+    }
+    if (explained >= min_inliers) return false;
   }
-  record->reference_from_camera = reference->Inverse() * solved.Inverse();
+  auto solve = [&](Pose3 start) -> std::optional<Pose3> {
+    const PoseOnlyResult r =
+        OptimizePose(model.camera, tracker_internal::MakePoseOptions(model), points, uvs, &start);
+    if (!r.converged || !start.AllFinite() || r.num_inliers < min_inliers) return std::nullopt;
+    return start;
+  };
+  std::optional<Pose3> solved = solve(current);
+  if (!solved && fallback_start != nullptr) solved = solve(*fallback_start);
+  if (!solved) return false;
+  record->reference_from_camera = reference->Inverse() * solved->Inverse();
   return true;
 }
 

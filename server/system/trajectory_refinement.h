@@ -4,7 +4,7 @@
 // well-determined ones around them, and frames whose points fix only their rotation given the
 // centre interpolated between those.
 //
-//   RefineFramePose(model, map, &record);                       // each tracked frame
+//   RefineFramePose(model, map, &record, &previous);            // each tracked frame
 //   SolveUnposedFrames(model, map, map_id, kUnposedMinPoints, &records);
 //   SmoothedFrames s = SmoothLooseFrames(model, map, map_id, max_points, &records);
 //
@@ -43,12 +43,18 @@ constexpr int kFinalBaIterations = 20;
 constexpr int kUnposedMinPoints = 20;
 constexpr double kUnposedPriorSigmaFraction = 0.025;
 
-// Re-solves the pose of a tracked frame that is not a keyframe against `map` (after a global
-// bundle adjustment): pose-only, from its current estimate, on the map points it observed.
+// Re-solves the pose of a tracked frame against `map` (after a global bundle adjustment):
+// pose-only on the map points it observed, from its current estimate and, when that fails,
+// from `fallback_start` (camera_from_world; RefineMap passes the frame before it, refined).
 // The record's pose relative to its reference keyframe takes the result when the solve
 // converges with at least 75 % of those observations as inliers (tracking's sparse-view
 // rule). Returns whether it did.
-bool RefineFramePose(const MeasurementModel& model, const MapData& map, TrajectoryRecord* record);
+// A keyframe's record is re-solved only when its keyframe's pose in the map explains fewer
+// than 75 % of the record's observations (tracking's chi-square bound): the bundle adjustment
+// dropped them as outliers, and a keyframe of a sparse view (8-20 points) left with a few
+// observations drifts (the assimp-testmodels drone: such keyframes 40-75 mm off).
+bool RefineFramePose(const MeasurementModel& model, const MapData& map, TrajectoryRecord* record,
+                     const Pose3* fallback_start = nullptr);
 
 // Gives poses on `map` (the map `map_id`, after RefineMap's bundle adjustment) to frames that
 // have none (lost, or waiting for a map) and kept their features, between two frames with a

@@ -68,6 +68,14 @@ TrajectoryRecord SeenFrom(const Map& map, const MeasurementModel& model, const P
   return r;
 }
 
+// The record's pose relative to the keyframe at the origin (its world pose) is `truth`. The
+// pixels are floats (1e-4 px at 640 px): micrometres at 3-5 m.
+void ExpectPose(const Pose3& truth, const TrajectoryRecord& r) {
+  const Pose3 error = truth.Inverse() * r.reference_from_camera;
+  EXPECT_LT(error.translation().norm(), 1e-5);
+  EXPECT_LT(Eigen::AngleAxisd(error.rotation()).angle(), 1e-5);
+}
+
 TEST(RefineFramePose, RecoversThePoseTheFrameWasSeenFrom) {
   Map map;
   MakeMap(&map);
@@ -80,14 +88,60 @@ TEST(RefineFramePose, RecoversThePoseTheFrameWasSeenFrom) {
                     Eigen::Vector3d(0.03, 0.0, -0.027));
   TrajectoryRecord r = SeenFrom(map, model, truth, tracked);
   map.Read([&](const MapData& m) { EXPECT_TRUE(RefineFramePose(model, m, &r)); });
-  // The keyframe is at the origin: the relative pose is the world pose. The pixels are floats
-  // (1e-4 px at 640 px): micrometres at 3-5 m.
-  const Pose3 error = truth.Inverse() * r.reference_from_camera;
-  EXPECT_LT(error.translation().norm(), 1e-5);
-  EXPECT_LT(Eigen::AngleAxisd(error.rotation()).angle(), 1e-5);
+  ExpectPose(truth, r);
 }
 
-TEST(RefineFramePose, LeavesKeyframesLostFramesAndFramesWithoutMappedObservations) {
+// A keyframe's record follows its keyframe in the map while that pose explains the record's
+// observations; a keyframe left where its observations no longer fit (the bundle adjustment
+// dropped them as outliers) is re-solved like any tracked frame.
+TEST(RefineFramePose, ResolvesAKeyframeOnlyWhereItsObservationsDoNotFitIt) {
+  Map map;
+  MakeMap(&map);
+  const MeasurementModel model = Model();
+  const Pose3 truth(Eigen::Quaterniond(Eigen::AngleAxisd(0.05, Eigen::Vector3d::UnitY())),
+                    Eigen::Vector3d(0.2, 0.1, -0.1));
+  // 0.3 mm off: 0.03 px at 3-5 m, within tracking's bound.
+  const Pose3 fitting = truth * Pose3(Eigen::Quaterniond::Identity(), Eigen::Vector3d(3e-4, 0, 0));
+  TrajectoryRecord kept = SeenFrom(map, model, truth, fitting);
+  kept.is_keyframe = true;
+  map.Read([&](const MapData& m) { EXPECT_FALSE(RefineFramePose(model, m, &kept)); });
+  EXPECT_EQ(kept.reference_from_camera.translation(), fitting.translation());
+
+  // 5 cm off: 3-5 px at 3-5 m.
+  const Pose3 off = truth * Pose3(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.05, 0, 0));
+  TrajectoryRecord drifted = SeenFrom(map, model, truth, off);
+  drifted.is_keyframe = true;
+  map.Read([&](const MapData& m) { EXPECT_TRUE(RefineFramePose(model, m, &drifted)); });
+  ExpectPose(truth, drifted);
+}
+
+// A frame whose own estimate the solve cannot start from (turned away from the wall: every
+// point behind the camera) is solved from the start it is given (RefineMap: the frame before
+// it), and left as it is without one.
+TEST(RefineFramePose, StartsFromTheGivenPoseWhenItsOwnFails) {
+  Map map;
+  MakeMap(&map);
+  const MeasurementModel model = Model();
+  const Pose3 truth(Eigen::Quaterniond(Eigen::AngleAxisd(0.1, Eigen::Vector3d::UnitY())),
+                    Eigen::Vector3d(0.3, -0.1, 0.2));
+  const Pose3 turned =
+      truth * Pose3(Eigen::Quaterniond(Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitY())),
+                    Eigen::Vector3d::Zero());
+  TrajectoryRecord alone = SeenFrom(map, model, truth, turned);
+  map.Read([&](const MapData& m) { EXPECT_FALSE(RefineFramePose(model, m, &alone)); });
+  EXPECT_EQ(alone.reference_from_camera.translation(), turned.translation());
+
+  // The frame before: 3 cm and 1 degree away (camera_from_world).
+  const Pose3 previous =
+      (truth * Pose3(Eigen::Quaterniond(Eigen::AngleAxisd(0.017, Eigen::Vector3d::UnitX())),
+                     Eigen::Vector3d(0.03, 0.0, 0.0)))
+          .Inverse();
+  TrajectoryRecord r = SeenFrom(map, model, truth, turned);
+  map.Read([&](const MapData& m) { EXPECT_TRUE(RefineFramePose(model, m, &r, &previous)); });
+  ExpectPose(truth, r);
+}
+
+TEST(RefineFramePose, LeavesLostFramesAndFramesWithoutMappedObservations) {
   Map map;
   MakeMap(&map);
   const MeasurementModel model = Model();
@@ -99,9 +153,6 @@ TEST(RefineFramePose, LeavesKeyframesLostFramesAndFramesWithoutMappedObservation
     EXPECT_FALSE(refined);
     EXPECT_EQ(r.reference_from_camera.translation(), tracked.translation());
   };
-  TrajectoryRecord keyframe = SeenFrom(map, model, truth, tracked);
-  keyframe.is_keyframe = true;  // refined by the bundle adjustment itself
-  unchanged(keyframe);
   TrajectoryRecord lost = SeenFrom(map, model, truth, tracked);
   lost.state = TrackingState::kLost;
   unchanged(lost);
