@@ -61,7 +61,8 @@ std::vector<PosedFrame> PosedFrames(const MeasurementModel& model, const MapData
       f.t = r[i].timestamp;
       f.loose = f.unposed = true;
       MappedObservations(map, r[i], &f.points, &f.uvs);
-      if (f.points.size() >= static_cast<size_t>(kUnposedMinPoints)) frames.push_back(std::move(f));
+      if (f.points.size() >= static_cast<size_t>(tracker_internal::kMinRotationOnlyInliers))
+        frames.push_back(std::move(f));
       continue;
     }
     const std::optional<Pose3> pose = RecordPose(map, map_id, r[i]);
@@ -197,7 +198,9 @@ std::optional<double> InterpolationDeviation(const std::vector<PosedFrame>& fram
 // is `sigma`) and the rotation its map points fit there, when the prior's deviation is within
 // kUnposedPriorSigmaFraction of the points' median depth and the rotation explains most of
 // them (tracking's sparse-view rule; each point's bound widened by the prior's deviation seen
-// from its depth). Its reference keyframe is the nearest posed frame's.
+// from its depth), and they are at least tracking's bound for a rotation-only pose
+// (kMinRotationOnlyInliers: the centre given, three degrees of freedom). Its reference
+// keyframe is the nearest posed frame's.
 bool PoseAtPrior(const MeasurementModel& model, const MapData& map,
                  const std::vector<PosedFrame>& frames, size_t k, const Eigen::Vector3d& centre,
                  double sigma, std::vector<TrajectoryRecord>* records) {
@@ -216,7 +219,7 @@ bool PoseAtPrior(const MeasurementModel& model, const MapData& map,
     points.push_back(f.points[i]);
     uvs.push_back(f.uvs[i]);
   }
-  if (points.size() < static_cast<size_t>(kUnposedMinPoints) ||
+  if (points.size() < static_cast<size_t>(tracker_internal::kMinRotationOnlyInliers) ||
       points.size() <
           tracker_internal::kSparseViewInlierFraction * static_cast<double>(f.points.size())) {
     return false;

@@ -36,10 +36,11 @@ constexpr int kSmoothingMinSamples = 5;
 // System::RefineMap: iterations of the global bundle adjustment over every keyframe and point.
 constexpr int kFinalBaIterations = 20;
 // RefineMap: the map points a frame without a pose is solved on, at least. SmoothLooseFrames
-// gives such a frame whose points fix its rotation but not its centre the interpolated centre
-// when the interpolation's deviation is within kUnposedPriorSigmaFraction of the points'
-// depth (the scanned-objects drone with occlusion: its frames at 2.0-2.2 % end 2-7 mm off;
-// of the two at 4.0-4.2 %, one would be 37 mm off; docs/design/map_refinement.md).
+// gives a frame without a pose whose points fix its rotation but not its centre (at least
+// tracking's kMinRotationOnlyInliers of them) the interpolated centre when the
+// interpolation's deviation is within kUnposedPriorSigmaFraction of the points' depth (the
+// scanned-objects drone with occlusion: its frames at 2.0-2.2 % end 2-7 mm off; of the two
+// at 4.0-4.2 %, one would be 37 mm off; docs/design/map_refinement.md).
 constexpr int kUnposedMinPoints = 20;
 constexpr double kUnposedPriorSigmaFraction = 0.025;
 
@@ -85,8 +86,9 @@ int SolveUnposedFrames(const MeasurementModel& model, const MapData& map, int ma
 // from their neighbours' interpolation within kSmoothingWindowS, grown with the span; the
 // rotation is refitted to the frame's bearings from the fused centre. `max_points`: the
 // tracker's (dense views are judged on an even subset, its information scaled up).
-// Frames still without a pose that see at least kUnposedMinPoints map points, between two
-// well-determined frames at most kSmoothingMaxSpanS from them, take the centre interpolated
+// Frames still without a pose that see at least kMinRotationOnlyInliers map points (the
+// tracker's bound for a rotation-only pose: the centre given, three degrees of freedom), between
+// two well-determined frames at most kSmoothingMaxSpanS from them, take the centre interpolated
 // between those two and the rotation their points fit there (most of them within the
 // chi-square bound, widened by the centre's deviation), when that deviation is within
 // kUnposedPriorSigmaFraction of the points' median depth. The deviation is measured, not
