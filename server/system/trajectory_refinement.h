@@ -46,7 +46,8 @@ constexpr double kUnposedPriorSigmaFraction = 0.025;
 
 // Re-solves the pose of a tracked frame against `map` (after a global bundle adjustment):
 // pose-only on the map points it observed, from its current estimate and, when that fails,
-// from `fallback_start` (camera_from_world; RefineMap passes the frame before it, refined).
+// from `fallback_start` (camera_from_world; RefineMap passes the frame before it, as its own
+// re-solve left it).
 // The record's pose relative to its reference keyframe takes the result when the solve
 // converges with at least 75 % of those observations as inliers (tracking's sparse-view
 // rule). Returns whether it did.

@@ -77,6 +77,12 @@ void ExpectPose(const Pose3& truth, const TrajectoryRecord& r) {
   EXPECT_LT(Eigen::AngleAxisd(error.rotation()).angle(), 1e-5);
 }
 
+// RefineFramePose on `map` as it is now.
+bool Refine(const Map& map, const MeasurementModel& model, TrajectoryRecord* r,
+            const Pose3* fallback_start = nullptr) {
+  return map.Read([&](const MapData& m) { return RefineFramePose(model, m, r, fallback_start); });
+}
+
 TEST(RefineFramePose, RecoversThePoseTheFrameWasSeenFrom) {
   Map map;
   MakeMap(&map);
@@ -88,7 +94,7 @@ TEST(RefineFramePose, RecoversThePoseTheFrameWasSeenFrom) {
       truth * Pose3(Eigen::Quaterniond(Eigen::AngleAxisd(0.01, Eigen::Vector3d::UnitX())),
                     Eigen::Vector3d(0.03, 0.0, -0.027));
   TrajectoryRecord r = SeenFrom(map, model, truth, tracked);
-  map.Read([&](const MapData& m) { EXPECT_TRUE(RefineFramePose(model, m, &r)); });
+  EXPECT_TRUE(Refine(map, model, &r));
   ExpectPose(truth, r);
 }
 
@@ -105,14 +111,14 @@ TEST(RefineFramePose, ResolvesAKeyframeOnlyWhereItsObservationsDoNotFitIt) {
   const Pose3 fitting = truth * Pose3(Eigen::Quaterniond::Identity(), Eigen::Vector3d(3e-4, 0, 0));
   TrajectoryRecord kept = SeenFrom(map, model, truth, fitting);
   kept.is_keyframe = true;
-  map.Read([&](const MapData& m) { EXPECT_FALSE(RefineFramePose(model, m, &kept)); });
+  EXPECT_FALSE(Refine(map, model, &kept));
   EXPECT_EQ(kept.reference_from_camera.translation(), fitting.translation());
 
   // 5 cm off: 3-5 px at 3-5 m.
   const Pose3 off = truth * Pose3(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.05, 0, 0));
   TrajectoryRecord drifted = SeenFrom(map, model, truth, off);
   drifted.is_keyframe = true;
-  map.Read([&](const MapData& m) { EXPECT_TRUE(RefineFramePose(model, m, &drifted)); });
+  EXPECT_TRUE(Refine(map, model, &drifted));
   ExpectPose(truth, drifted);
 }
 
@@ -129,7 +135,7 @@ TEST(RefineFramePose, StartsFromTheGivenPoseWhenItsOwnFails) {
       truth * Pose3(Eigen::Quaterniond(Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitY())),
                     Eigen::Vector3d::Zero());
   TrajectoryRecord alone = SeenFrom(map, model, truth, turned);
-  map.Read([&](const MapData& m) { EXPECT_FALSE(RefineFramePose(model, m, &alone)); });
+  EXPECT_FALSE(Refine(map, model, &alone));
   EXPECT_EQ(alone.reference_from_camera.translation(), turned.translation());
 
   // The frame before: 3 cm and 1 degree away (camera_from_world).
@@ -138,7 +144,7 @@ TEST(RefineFramePose, StartsFromTheGivenPoseWhenItsOwnFails) {
                      Eigen::Vector3d(0.03, 0.0, 0.0)))
           .Inverse();
   TrajectoryRecord r = SeenFrom(map, model, truth, turned);
-  map.Read([&](const MapData& m) { EXPECT_TRUE(RefineFramePose(model, m, &r, &previous)); });
+  EXPECT_TRUE(Refine(map, model, &r, &previous));
   ExpectPose(truth, r);
 }
 
@@ -149,9 +155,7 @@ TEST(RefineFramePose, LeavesLostFramesAndFramesWithoutMappedObservations) {
   const Pose3 truth(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.1, 0.0, 0.0));
   const Pose3 tracked(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.15, 0.0, 0.0));
   auto unchanged = [&](TrajectoryRecord r) {
-    bool refined = true;
-    map.Read([&](const MapData& m) { refined = RefineFramePose(model, m, &r); });
-    EXPECT_FALSE(refined);
+    EXPECT_FALSE(Refine(map, model, &r));
     EXPECT_EQ(r.reference_from_camera.translation(), tracked.translation());
   };
   TrajectoryRecord lost = SeenFrom(map, model, truth, tracked);
