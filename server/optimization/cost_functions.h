@@ -204,6 +204,43 @@ class PoseOnlyReprojectionError {
   const double inv_sigma_;
 };
 
+// The acceleration of the camera's centre at the middle of three consecutive camera_from_world
+// poses (times t0 < t1 < t2), as the second divided difference of the centres
+// c = -R^T t: 2 ((c2 - c1) / (t2 - t1) - (c1 - c0) / (t1 - t0)) / (t2 - t0), in m/s^2,
+// multiplied by inv_sigma (the prior's 1 / sigma).
+class CentreAccelerationError {
+ public:
+  CentreAccelerationError(double dt01, double dt12, double inv_sigma)
+      : dt01_(dt01), dt12_(dt12), inv_sigma_(inv_sigma) {}
+
+  template <typename T>
+  bool operator()(const T* const pose0, const T* const pose1, const T* const pose2,
+                  T* residuals) const {
+    const Eigen::Matrix<T, 3, 1> c0 = Centre(pose0), c1 = Centre(pose1), c2 = Centre(pose2);
+    const Eigen::Matrix<T, 3, 1> a =
+        ((c2 - c1) / T(dt12_) - (c1 - c0) / T(dt01_)) * T(2.0 / (dt01_ + dt12_));
+    for (int i = 0; i < 3; ++i) residuals[i] = a[i] * T(inv_sigma_);
+    return true;
+  }
+
+  static ceres::CostFunction* Create(double dt01, double dt12, double inv_sigma) {
+    return new ceres::AutoDiffCostFunction<CentreAccelerationError, 3, kPoseParameterSize,
+                                           kPoseParameterSize, kPoseParameterSize>(
+        new CentreAccelerationError(dt01, dt12, inv_sigma));
+  }
+
+ private:
+  template <typename T>
+  static Eigen::Matrix<T, 3, 1> Centre(const T* camera_from_world) {
+    const Eigen::Map<const Eigen::Quaternion<T>> rotation(camera_from_world);
+    const Eigen::Map<const Eigen::Matrix<T, 3, 1>> translation(camera_from_world + 4);
+    return -(rotation.conjugate() * translation);
+  }
+
+  const double dt01_, dt12_;
+  const double inv_sigma_;
+};
+
 // Relative Sim3 constraint between two world_from_camera nodes (pose graph). With the
 // estimate E = from^-1 * to and the measurement M = from_from_to, the error M^-1 * E is mapped
 // to 7 residuals: 2 * vec(q) of its rotation (w >= 0), its translation, and its log scale, all

@@ -9,6 +9,7 @@
 
 #include "optimization/cost_functions.h"
 #include "optimization/problems.h"
+#include "optimization/sparse_solver.h"
 
 namespace m2s::slam {
 
@@ -97,16 +98,7 @@ PoseGraphResult OptimizePoseGraph(const PoseGraphOptions& options,
     }
   }
 
-  ceres::Solver::Options solver_options;
-  solver_options.linear_solver_type =
-      ceres::IsSparseLinearAlgebraLibraryTypeAvailable(ceres::SUITE_SPARSE) ||
-              ceres::IsSparseLinearAlgebraLibraryTypeAvailable(ceres::EIGEN_SPARSE)
-          ? ceres::SPARSE_NORMAL_CHOLESKY
-          : ceres::DENSE_QR;
-  solver_options.max_num_iterations = options.max_iterations;
-  solver_options.logging_type = ceres::SILENT;
-  ceres::Solver::Summary summary;
-  ceres::Solve(solver_options, &problem, &summary);
+  const ceres::Solver::Summary summary = internal::SolveSparse(&problem, options.max_iterations);
   result.initial_cost = summary.initial_cost;
   result.final_cost = summary.final_cost;
   result.success = summary.IsSolutionUsable();

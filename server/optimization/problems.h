@@ -122,6 +122,41 @@ PoseGraphResult OptimizePoseGraph(const PoseGraphOptions& options,
                                   std::vector<PoseGraphNode>* nodes,
                                   const std::vector<PoseGraphEdge>& edges);
 
+// ---------- Trajectory with a motion prior (end-of-session refinement) ----------
+// A sequence of camera poses, each observing fixed map points, smoothed jointly: every pose
+// fits its observations (robust, whitened by pixel_sigma) and the camera's centre, between
+// three consecutive frames at most max_gap_s apart, accelerates by acceleration_sigma (m/s^2,
+// per axis, robust beyond the chi-square bound with 3 degrees of freedom) at 1 sigma. The
+// prior's second difference at frame interval dt is acceleration_sigma * dt^2 (30 fps,
+// 5 m/s^2: 5.6 mm), so it moves frames whose observations fix their centre worse than that
+// and leaves well-determined ones where they are.
+struct TrajectoryFrame {
+  double t = 0.0;                             // seconds, increasing along the sequence
+  Pose3 camera_from_world;                    // in/out
+  std::vector<Eigen::Vector3d> points_world;  // held fixed
+  std::vector<Eigen::Vector2d> observations_uv;
+  bool fixed = false;  // held where it is (needs no observations): an anchor for the prior
+};
+struct TrajectoryOptions {
+  double pixel_sigma = 1.0;
+  double acceleration_sigma = 5.0;
+  double max_gap_s = 0.1;
+  int max_iterations = 20;
+  Status Check() const;
+};
+struct TrajectoryResult {
+  bool success = false;
+  int priors = 0;  // acceleration terms (triples of consecutive frames)
+  double initial_cost = 0.0;
+  double final_cost = 0.0;
+};
+
+// Optimises every frame's camera_from_world under the observations and the motion prior.
+// A frame neither fixed nor observing a point, or times out of order: success false, nothing
+// changed.
+TrajectoryResult OptimizeTrajectory(const Camera& camera, const TrajectoryOptions& options,
+                                    std::vector<TrajectoryFrame>* frames);
+
 // Closed-form point-set alignment (Umeyama) is m2s::AlignPoints in common/alignment.h.
 
 }  // namespace m2s::slam

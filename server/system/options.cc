@@ -128,6 +128,8 @@ Status Options::Check() const {
     return Fail(kName, "feature_budget must be at least initializer.min_points");
   }
   if (frame_observations_kept < 0) return Fail(kName, "frame_observations_kept must be >= 0");
+  if (!(refine_acceleration_sigma >= 0.0) || !std::isfinite(refine_acceleration_sigma))
+    return Fail(kName, "refine_acceleration_sigma must be finite and >= 0");
   if (input_queue_capacity <= 0) return Fail(kName, "input_queue_capacity must be positive");
   if (mapping_queue_capacity < 1) {
     return Fail(kName, "mapping_queue_capacity must be positive");

@@ -287,6 +287,13 @@ void SlamSystem::RefineMap() {
                        << " frames without a pose given the centre interpolated between their "
                           "neighbours and the rotation their points fit there";
       }
+      const MotionPriorResult prior = ApplyMotionPrior(
+          options_.measurement(), current, current_map_, options_.tracker.max_points,
+          options_.refine_acceleration_sigma, &trajectory_);
+      if (prior.smoothed > 0) {
+        M2S_LOG(kInfo) << prior.smoothed << " frames smoothed under the motion prior (pixel noise "
+                       << prior.pixel_sigma << " px; " << prior.kept << " kept their pose)";
+      }
     });
   });
 }

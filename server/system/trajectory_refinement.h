@@ -2,11 +2,13 @@
 // (System::RefineMap, docs/design/map_refinement.md): tracked frames re-solved, frames without
 // a pose solved where the map determines them, loosely determined frames smoothed between the
 // well-determined ones around them, and frames whose points fix only their rotation given the
-// centre interpolated between those.
+// centre interpolated between those, and then every frame smoothed under a prior on the
+// camera's acceleration.
 //
 //   RefineFramePose(model, map, &record, &previous);            // each tracked frame
 //   SolveUnposedFrames(model, map, map_id, kUnposedMinPoints, &records);
 //   SmoothedFrames s = SmoothLooseFrames(model, map, map_id, max_points, &records);
+//   ApplyMotionPrior(model, map, map_id, max_points, acceleration_sigma, &records);
 //
 // Pure functions on the records and the map; the caller holds the map's lock.
 #pragma once
@@ -43,6 +45,10 @@ constexpr int kFinalBaIterations = 20;
 // at 4.0-4.2 %, one would be 37 mm off; docs/design/map_refinement.md).
 constexpr int kUnposedMinPoints = 20;
 constexpr double kUnposedPriorSigmaFraction = 0.025;
+// ApplyMotionPrior: a frame joins the smoothing with at least this many map points within
+// tracking's bound (its centre held by the prior, two bearings fix its rotation; the third
+// one checks them).
+constexpr int kMotionPriorMinPoints = 3;
 
 // Re-solves the pose of a tracked frame against `map` (after a global bundle adjustment):
 // pose-only on the map points it observed, from its current estimate and, when that fails,
@@ -103,5 +109,26 @@ struct SmoothedFrames {
 };
 SmoothedFrames SmoothLooseFrames(const MeasurementModel& model, const MapData& map, int map_id,
                                  int max_points, std::vector<TrajectoryRecord>* records);
+
+// Smooths every frame with a pose in `map` (the map `map_id`, after the steps above) jointly
+// under a prior on the camera's acceleration (OptimizeTrajectory: acceleration_sigma m/s^2 per
+// axis, consecutive frames at most kSmoothingConsecutiveS apart; each frame on its map points
+// within tracking's chi-square bound, at least kMotionPriorMinPoints of them; `max_points`:
+// the tracker's). Frames whose points leave the centre loosely determined (SmoothLooseFrames'
+// rule) are left as SmoothLooseFrames left them. The pixel
+// noise the prior is weighed against is the one the observations show (their median squared
+// error); with exact data (its variance below kExactDataVarianceFactor of the model's) nothing
+// moves. A frame keeps its pose where the smoothed one explains fewer than
+// kSparseViewInlierFraction as many of its observations. Single views of a few hundred
+// bunched points fix the centre to millimetres under 0.5 px noise, independently from frame
+// to frame; the prior averages that noise over neighbouring frames.
+struct MotionPriorResult {
+  double pixel_sigma = 0.0;  // estimated from the residuals (0: too few frames)
+  int smoothed = 0;          // frames that took the smoothed pose
+  int kept = 0;              // frames the smoothed pose no longer explained
+};
+MotionPriorResult ApplyMotionPrior(const MeasurementModel& model, const MapData& map, int map_id,
+                                   int max_points, double acceleration_sigma,
+                                   std::vector<TrajectoryRecord>* records);
 
 }  // namespace m2s::slam

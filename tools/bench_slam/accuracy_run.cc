@@ -200,6 +200,7 @@ Expected<RunMetrics> RunAccuracy(const Scene& scene, const Sequence& sequence,
     options.initializer.min_parallax_deg = config.init_min_parallax_deg;
   if (config.more_views_after_s)
     options.initializer.more_views_after_s = *config.more_views_after_s;
+  if (config.acceleration_sigma) options.refine_acceleration_sigma = *config.acceleration_sigma;
   if (config.max_point_uncertainty > 0)
     options.mapper.max_point_uncertainty = config.max_point_uncertainty;
   if (config.min_constrained_points >= 0)

@@ -24,6 +24,8 @@ struct RunConfig {
   double init_min_parallax_deg = -1.0;  // Options::initializer.min_parallax_deg (-1: default)
   // Options::initializer.more_views_after_s (nullopt: the library's default).
   std::optional<double> more_views_after_s;
+  // Options::refine_acceleration_sigma (nullopt: the library's default).
+  std::optional<double> acceleration_sigma;
   double max_point_uncertainty = -1.0;  // Options::mapper.max_point_uncertainty (-1: default)
   int min_constrained_points = -1;      // Options::tracker.min_constrained_points (-1: default)
   int vertex_stride = 1;                // use only vertices with id % vertex_stride == 0

@@ -214,11 +214,16 @@ int main(int argc, char** argv) {
   app.add_flag("--no-refine", no_refine,
                "measure the final trajectory and map without System::RefineMap() (the global "
                "bundle adjustment at the end of each run, then every frame re-solved and frames "
-               "without a pose solved where the map determines them)");
+               "without a pose solved where the map determines them, then the motion prior)");
   std::optional<double> more_views_after_s;
   app.add_option("--more-views-after", more_views_after_s,
                  "slam::Options::initializer.more_views_after_s in seconds (negative: two-view "
                  "initialisation only; default: the library's)");
+  std::optional<double> acceleration_sigma;
+  app.add_option("--acceleration-sigma", acceleration_sigma,
+                 "slam::Options::refine_acceleration_sigma in m/s^2: the motion prior of "
+                 "RefineMap's last step (0: none; default: the library's)")
+      ->check(CLI::NonNegativeNumber);
   bool verbose = false;
   app.add_flag("--verbose", verbose,
                "log the SLAM system's debug messages (initialisation refusals, lost frames)");
@@ -231,6 +236,7 @@ int main(int argc, char** argv) {
     config.min_visible_for_lost = min_visible;
     config.refine_map = !no_refine;
     config.more_views_after_s = more_views_after_s;
+    config.acceleration_sigma = acceleration_sigma;
     config.projector_threads = 0;
     config.send_budget = m2s::slam::Options().feature_budget;  // as m2s_client sends
     nlohmann::json rows = nlohmann::json::array();
@@ -307,6 +313,7 @@ int main(int argc, char** argv) {
       config.min_visible_for_lost = min_visible;
       config.refine_map = !no_refine;
       config.more_views_after_s = more_views_after_s;
+      config.acceleration_sigma = acceleration_sigma;
       if (!RunModes(composed->scene, spec.name, motion, sequence, modes, config, dump_dir, &rows))
         return 1;
     }

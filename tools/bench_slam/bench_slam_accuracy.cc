@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <fstream>
 #include <iostream>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -103,6 +104,7 @@ int main(int argc, char** argv) {
   double wrong_ids = 0.01;
   std::string json_path;
   std::string dump_dir;
+  std::optional<double> acceleration_sigma;
   app.add_option("--fps", fps, "frame rates")->check(CLI::PositiveNumber);
   app.add_option("--modes", modes, "noise-free, noisy, realtime, realtime-noisy")
       ->check(CLI::IsMember({"noise-free", "noisy", "realtime", "realtime-noisy"}));
@@ -132,6 +134,10 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0.0, 1.0));
   app.add_option("--dump-trajectories", dump_dir,
                  "write aligned estimate and truth (TUM) per run into this folder");
+  app.add_option("--acceleration-sigma", acceleration_sigma,
+                 "slam::Options::refine_acceleration_sigma in m/s^2: the motion prior of "
+                 "RefineMap's last step (0: none; default: the library's)")
+      ->check(CLI::NonNegativeNumber);
   app.add_option("--json", json_path, "also write the results as JSON to this file");
   CLI11_PARSE(app, argc, argv);
 
@@ -168,6 +174,7 @@ int main(int argc, char** argv) {
     for (const std::string& mode : modes) {
       for (double rate : fps) {
         m2s::bench::RunConfig config;
+        config.acceleration_sigma = acceleration_sigma;
         config.fps = rate;
         config.noisy = mode == "noisy" || mode == "realtime-noisy";
         config.realtime = mode.rfind("realtime", 0) == 0;

@@ -93,6 +93,10 @@ TEST(Options, SystemRules) {
   ExpectRefused<O>([](O* o) { o->input_queue_capacity = 0; }, "input_queue_capacity");
   ExpectRefused<O>([](O* o) { o->mapping_queue_capacity = 0; }, "mapping_queue_capacity");
   ExpectRefused<O>([](O* o) { o->mapping_nice = 20; }, "mapping_nice");
+  ExpectRefused<O>([](O* o) { o->refine_acceleration_sigma = -1.0; }, "refine_acceleration_sigma");
+  ExpectRefused<O>([](O* o) { o->refine_acceleration_sigma = NAN; }, "refine_acceleration_sigma");
+  ExpectRefused<O>([](O* o) { o->refine_acceleration_sigma = INFINITY; },
+                   "refine_acceleration_sigma");
   // The camera checks itself.
   ExpectRefused<O>([](O* o) { o->camera.width = 0; }, "width");
 }

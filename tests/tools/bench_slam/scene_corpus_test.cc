@@ -162,7 +162,7 @@ TEST_F(SceneRunTest, DroneNoiseFreeYawingOntoBareWalls) {
   Run("drone", false, false, {0, 0, 0.0003, 0.005}, /*duration_s=*/20.0);
 }
 
-// Noisy features (0.5 px, 1% wrong ids): measured ATE RMSE 0.56 mm, max 1.7 mm, none lost.
+// Noisy features (0.5 px, 1% wrong ids): measured ATE RMSE 0.53 mm, max 1.6 mm, none lost.
 TEST_F(SceneRunTest, HandheldNoisy) { Run("handheld", true, false, {0, 0, 0.004, 0.025}); }
 
 // Fails today: no two frames of the 121 pass the two-view initialisation's checks (over 20 s
@@ -176,7 +176,7 @@ TEST_F(SceneRunTest, DISABLED_DroneNoisy) { Run("drone", true, false, {30, 0, 0.
 // The 20 s flight with two-view initialisation only: its second map (frames 540 and 561) is
 // adjusted into the minimum that USAC's motion leads to, 1.0 degree of rotation from the truth,
 // instead of RANSAC's at 5.6 degrees (docs/design/two_view_initialisation.md, item 6).
-// Measured: ATE RMSE 14.1 mm, max 59.3 mm, 269 frames without a pose (a first map only at
+// Measured: ATE RMSE 13.6 mm, max 59.3 mm, 269 frames without a pose (a first map only at
 // frame 382, on forward flight); with RANSAC's minimum, 112 mm and 475 mm.
 TEST_F(SceneRunTest, DroneNoisyTakesTheLowestTwoViewMinimum) {
   Run("drone", true, false, {0, 280, 0.03, 0.12}, /*duration_s=*/20.0,
@@ -185,7 +185,7 @@ TEST_F(SceneRunTest, DroneNoisyTakesTheLowestTwoViewMinimum) {
 
 // The same flight as initialised by default: after 3 s of refusals, the kept frames between
 // frames 107 and 119 decide the motion the two views leave undetermined (item 7). Measured:
-// ATE RMSE 9.1 mm, max 75.9 mm, 4 frames without a pose.
+// ATE RMSE 8.2 mm, max 76.0 mm, 4 frames without a pose.
 TEST_F(SceneRunTest, DroneNoisyInitialisesFromMoreViews) {
   Run("drone", true, false, {0, 30, 0.02, 0.12}, /*duration_s=*/20.0);
 }
@@ -195,7 +195,7 @@ TEST_F(SceneRunTest, DISABLED_HeadNoisyOcclusion) {
   Run("head", true, true, {30, 0, 0.005, 0.025});
 }
 
-// Measured ATE RMSE 0.63 mm, max 1.7 mm, none lost.
+// Measured ATE RMSE 0.60 mm, max 1.6 mm, none lost.
 TEST_F(SceneRunTest, HandheldNoisyOcclusion) { Run("handheld", true, true, {0, 0, 0.005, 0.025}); }
 
 // Fails today: initialised from frames 0 and 13, then lost; the new map started 0.5 s later does

@@ -21,6 +21,7 @@ namespace m2s {
 // Chi-square quantiles: the outlier bounds on a squared residual in units of sigma^2.
 inline constexpr double kChi2OneDof95 = 3.841;    // 95 %, 1 dof (distance to an epipolar line)
 inline constexpr double kChi2TwoDof95 = 5.991;    // 95 %, 2 dof (reprojection, transfer error)
+inline constexpr double kChi2ThreeDof95 = 7.815;  // 95 %, 3 dof (a 3-D position)
 inline constexpr double kChi2FiveDof999 = 20.52;  // 99.9 %, 5 dof (a two-view motion)
 inline constexpr double kChi2SixDof999 = 22.46;   // 99.9 %, 6 dof (a pose)
 
