@@ -125,10 +125,11 @@ PoseGraphResult OptimizePoseGraph(const PoseGraphOptions& options,
 // ---------- Trajectory with a motion prior (end-of-session refinement) ----------
 // A sequence of camera poses, each observing fixed map points, smoothed jointly: every pose
 // fits its observations (robust, whitened by pixel_sigma) and the camera's centre, between
-// three consecutive frames at most max_gap_s apart, accelerates by acceleration_sigma (m/s^2,
-// per axis, robust beyond the chi-square bound with 3 degrees of freedom) at 1 sigma. The
-// prior's second difference at frame interval dt is acceleration_sigma * dt^2 (30 fps,
-// 5 m/s^2: 5.6 mm), so it moves frames whose observations fix their centre worse than that
+// three consecutive frames at most max_gap_s apart, accelerates by acceleration_sigma (the
+// points' units per s^2, per axis, robust beyond the chi-square bound with 3 degrees of
+// freedom) at 1 sigma. The prior's second difference at frame interval dt is
+// acceleration_sigma * dt^2 (30 fps, 5: 0.0056 units), so it moves frames whose observations
+// fix their centre worse than that
 // and leaves well-determined ones where they are.
 struct TrajectoryFrame {
   double t = 0.0;                             // seconds, increasing along the sequence

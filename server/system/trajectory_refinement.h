@@ -111,15 +111,16 @@ SmoothedFrames SmoothLooseFrames(const MeasurementModel& model, const MapData& m
                                  int max_points, std::vector<TrajectoryRecord>* records);
 
 // Smooths every frame with a pose in `map` (the map `map_id`, after the steps above) jointly
-// under a prior on the camera's acceleration (OptimizeTrajectory: acceleration_sigma m/s^2 per
-// axis, consecutive frames at most kSmoothingConsecutiveS apart; each frame on its map points
-// within tracking's chi-square bound, at least kMotionPriorMinPoints of them; `max_points`:
-// the tracker's). Frames whose points leave the centre loosely determined (SmoothLooseFrames'
-// rule) are left as SmoothLooseFrames left them. The pixel
-// noise the prior is weighed against is the one the observations show (their median squared
-// error); with exact data (its variance below kExactDataVarianceFactor of the model's) nothing
-// moves. A frame keeps its pose where the smoothed one explains fewer than
-// kSparseViewInlierFraction as many of its observations. Single views of a few hundred
+// under a prior on the camera's acceleration (OptimizeTrajectory: acceleration_sigma map
+// units/s^2 per axis, consecutive frames at most kSmoothingConsecutiveS apart; each frame on
+// its map points within tracking's chi-square bound, at least kMotionPriorMinPoints of them;
+// `max_points`: the tracker's). Frames whose points leave the centre loosely determined
+// (SmoothLooseFrames' rule) are left as SmoothLooseFrames left them. The pixel noise the prior
+// is weighed against is the one the observations show (their median squared error); with
+// exact data (its variance below kExactDataVarianceFactor of the model's) nothing moves. A
+// frame keeps its pose where the smoothed one explains fewer than kSparseViewInlierFraction as
+// many of its observations. A keyframe's record at its keyframe (tracking's, and the one
+// RefineFramePose leaves) is held: the bundle adjustment's pose. Single views of a few hundred
 // bunched points fix the centre to millimetres under 0.5 px noise, independently from frame
 // to frame; the prior averages that noise over neighbouring frames.
 struct MotionPriorResult {

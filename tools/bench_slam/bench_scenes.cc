@@ -221,7 +221,7 @@ int main(int argc, char** argv) {
                  "initialisation only; default: the library's)");
   std::optional<double> acceleration_sigma;
   app.add_option("--acceleration-sigma", acceleration_sigma,
-                 "slam::Options::refine_acceleration_sigma in m/s^2: the motion prior of "
+                 "slam::Options::refine_acceleration_sigma in map units/s^2: the motion prior of "
                  "RefineMap's last step (0: none; default: the library's)")
       ->check(CLI::NonNegativeNumber);
   bool verbose = false;

@@ -135,7 +135,7 @@ int main(int argc, char** argv) {
   app.add_option("--dump-trajectories", dump_dir,
                  "write aligned estimate and truth (TUM) per run into this folder");
   app.add_option("--acceleration-sigma", acceleration_sigma,
-                 "slam::Options::refine_acceleration_sigma in m/s^2: the motion prior of "
+                 "slam::Options::refine_acceleration_sigma in map units/s^2: the motion prior of "
                  "RefineMap's last step (0: none; default: the library's)")
       ->check(CLI::NonNegativeNumber);
   app.add_option("--json", json_path, "also write the results as JSON to this file");

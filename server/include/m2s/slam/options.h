@@ -168,10 +168,11 @@ struct Options {
   // 100, the noisy scene-diversity runs end 0.2-3.2 mm worse (docs/design/map_refinement.md).
   int frame_observations_kept = 600;
   // System::RefineMap() smooths the frames it refined under a prior on the camera's
-  // acceleration: this many m/s^2 per axis at 1 sigma (a person's head or hand, a drone:
-  // a few m/s^2), weighed against the pixel noise the frames' residuals show
-  // (docs/design/map_refinement.md). 0: no motion prior (each frame on its own points, as
-  // ORB-SLAM's visual-only trajectories).
+  // acceleration: this many map units per s^2 per axis at 1 sigma (a monocular map's unit is
+  // the median depth of its initial points, 0.9-4.7 m in the scene-diversity runs: 5 is
+  // 4-23 m/s^2; a person's head or hand or a drone accelerates by a few m/s^2), weighed
+  // against the pixel noise the frames' residuals show (docs/design/map_refinement.md). 0: no
+  // motion prior (each frame on its own points, as ORB-SLAM's visual-only trajectories).
   double refine_acceleration_sigma = 5.0;
   // Capacity of the latest-wins input queue used by Submit().
   int input_queue_capacity = 2;
